@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# plastifem set-up: installs missing Debian packages, configures, builds, then runs
+#   bash cmake/setup.sh example   the flagship example (writes VTU/PVD into build/out/)
+#   bash cmake/setup.sh test      the whole test suite through ctest
+#   bash cmake/setup.sh bench     the benchmark suite (tables + CSV into build/bench/)
+# Environment: BUILD_DIR (default build), JOBS (default: number of cores).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+what=${1:-test}
+build=${BUILD_DIR:-build}
+jobs=${JOBS:-$(nproc)}
+
+packages=(g++ cmake make pkg-config libeigen3-dev libfmt-dev catch2)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release
+case "$what" in
+  example)
+    cmake --build "$build" -j "$jobs" --target cantilever
+    mkdir -p "$build/out"
+    "$build/examples/cantilever" --out "$build/out" ;;
+  test)
+    cmake --build "$build" -j "$jobs"
+    ctest --test-dir "$build" --output-on-failure -j "$jobs" ;;
+  bench)
+    cmake --build "$build" -j "$jobs" --target bench_step
+    mkdir -p "$build/bench"
+    "$build/bench/bench_step" --csv "$build/bench/step.csv" "${@:2}" ;;
+  *) echo "usage: bash cmake/setup.sh example|test|bench" >&2; exit 2 ;;
+esac

@@ -1,0 +1,102 @@
+#pragma once
+// Quadrature rules on the reference elements.
+//
+// Reference domains: the tetrahedron {x, y, z >= 0, x + y + z <= 1} (volume 1/6) and the
+// cube [-1, 1]^3 (volume 8). A rule of `degree` d integrates exactly
+//   - on the tetrahedron: every polynomial of total degree <= d;
+//   - on the cube: every x^a y^b z^c with max(a, b, c) <= d (tensor Gauss-Legendre).
+// tests/test_quadrature.cpp checks both claims and that each rule fails one degree above.
+#include <plastifem/core/types.hpp>
+
+#include <array>
+#include <cmath>
+
+namespace plastifem {
+
+/// N points with positive weights on a reference element.
+template <int N>
+struct Quadrature {
+  static constexpr int size = N;
+  std::array<Vec3, N> points;
+  std::array<Scalar, N> weights;
+  int degree;  ///< polynomial degree integrated exactly (see file comment for its meaning)
+};
+
+namespace detail {
+
+/// n-point Gauss-Legendre abscissae and weights on [-1, 1], exact to degree 2n - 1.
+template <int n>
+constexpr std::array<std::array<Scalar, 2>, n> gauss_legendre_1d() {
+  static_assert(n >= 1 && n <= 3, "Gauss-Legendre rules are tabulated for 1..3 points");
+  if constexpr (n == 1) {
+    return {{{0.0, 2.0}}};
+  } else if constexpr (n == 2) {
+    constexpr Scalar a = 0.57735026918962576451;  // 1/sqrt(3)
+    return {{{-a, 1.0}, {a, 1.0}}};
+  } else {
+    constexpr Scalar a = 0.77459666924148337704;  // sqrt(3/5)
+    return {{{-a, 5.0 / 9.0}, {0.0, 8.0 / 9.0}, {a, 5.0 / 9.0}}};
+  }
+}
+
+}  // namespace detail
+
+/// Tensor-product Gauss-Legendre rule with n points per direction on [-1, 1]^3.
+template <int n>
+Quadrature<n * n * n> hex_gauss() {
+  const auto g = detail::gauss_legendre_1d<n>();
+  Quadrature<n * n * n> q{};
+  int k = 0;
+  for (int c = 0; c < n; ++c)
+    for (int b = 0; b < n; ++b)
+      for (int a = 0; a < n; ++a, ++k) {
+        q.points[k] = Vec3(g[a][0], g[b][0], g[c][0]);
+        q.weights[k] = g[a][1] * g[b][1] * g[c][1];
+      }
+  q.degree = 2 * n - 1;
+  return q;
+}
+
+/// Midpoint rule on the reference tetrahedron: degree 1.
+inline Quadrature<1> tet_rule_1() {
+  return {{Vec3(0.25, 0.25, 0.25)}, {1.0 / 6.0}, 1};
+}
+
+/// Symmetric 4-point rule (Hammer, Marlowe and Stroud 1956): degree 2.
+inline Quadrature<4> tet_rule_4() {
+  const Scalar a = 0.13819660112501051518;  // (5 - sqrt 5) / 20
+  const Scalar b = 1.0 - 3.0 * a;
+  const Scalar w = 1.0 / 24.0;
+  return {{Vec3(a, a, a), Vec3(b, a, a), Vec3(a, b, a), Vec3(a, a, b)}, {w, w, w, w}, 2};
+}
+
+/// 14-point rule with positive weights (Walkington 2000; Gellert and Harbord 1991,
+/// Table VI): degree 5. Exact for the Tet10 consistent mass (degree 4).
+inline Quadrature<14> tet_rule_14() {
+  Quadrature<14> q{};
+  int k = 0;
+  // Class 1 and 2: barycentric (a, a, a, 1 - 3a), four permutations each.
+  auto orbit4 = [&](Scalar a, Scalar w) {
+    const Scalar b = 1.0 - 3.0 * a;
+    const Vec3 pts[4] = {Vec3(a, a, a), Vec3(b, a, a), Vec3(a, b, a), Vec3(a, a, b)};
+    for (const auto& p : pts) {
+      q.points[k] = p;
+      q.weights[k++] = w;
+    }
+  };
+  orbit4(0.31088591926330060980, 0.018781320953002641800);
+  orbit4(0.092735250310891226402, 0.012248840519393658257);
+  // Class 3: barycentric (a, a, b, b) with b = 1/2 - a, six permutations.
+  const Scalar a = 0.045503704125649649492, b = 0.5 - a;
+  const Scalar w = (1.0 / 6.0 - 4.0 * (0.018781320953002641800 + 0.012248840519393658257)) / 6.0;
+  const Vec3 pts[6] = {Vec3(a, a, b), Vec3(a, b, a), Vec3(b, a, a),
+                       Vec3(a, b, b), Vec3(b, a, b), Vec3(b, b, a)};
+  for (const auto& p : pts) {
+    q.points[k] = p;
+    q.weights[k++] = w;
+  }
+  q.degree = 5;
+  return q;
+}
+
+}  // namespace plastifem

@@ -1,0 +1,83 @@
+#pragma once
+// Quadratic tetrahedron, 10 nodes: the Tet4 corners and one node at the middle of each edge.
+//
+//            3                  corners as Tet4; mid-edge nodes:
+//           /|\                   4 (0,1)   5 (1,2)   6 (0,2)
+//          7 | 9                  7 (0,3)   8 (1,3)   9 (2,3)
+//         /  8  \            (node 8 sits on the back edge 1-3)
+//        0 --|6-- 2             VTK_QUADRATIC_TETRA (24). Gmsh type 11 numbers the last
+//         \  |  /               two the other way round (Gmsh 8 = edge (2,3), 9 = (1,3));
+//          4 | 5                the Gmsh reader swaps them.
+//            1
+//
+// With barycentric L = (1 - x - y - z, x, y, z): corner i: L_i (2 L_i - 1); edge (i, j): 4 L_i L_j.
+#include <plastifem/element/quadrature.hpp>
+
+#include <array>
+
+namespace plastifem {
+
+struct Tet10 {
+  static constexpr const char* name = "Tet10";
+  static constexpr int num_nodes = 10;
+  static constexpr int num_vertices = 4;
+  static constexpr int order = 2;
+  static constexpr int vtk_cell_type = 24;
+  static constexpr Scalar reference_volume = 1.0 / 6.0;
+
+  /// Faces with outward normals: three corners, then the mid-edge nodes between them; Tri6.
+  static constexpr int num_faces = 4, nodes_per_face = 6, vtk_face_type = 22;
+  static constexpr std::array<std::array<int, 6>, 4> faces{{{0, 2, 1, 6, 5, 4},
+                                                            {0, 1, 3, 4, 8, 7},
+                                                            {0, 3, 2, 7, 9, 6},
+                                                            {1, 2, 3, 5, 9, 8}}};
+  /// Edges as (corner, corner); the node on edge k is 4 + k.
+  static constexpr std::array<std::array<int, 2>, 6> edges{{{0, 1}, {1, 2}, {0, 2}, {0, 3}, {1, 3}, {2, 3}}};
+
+  using ShapeVector = Eigen::Matrix<Scalar, num_nodes, 1>;
+  using ShapeGradient = Eigen::Matrix<Scalar, num_nodes, 3>;
+  using NodeMatrix = Eigen::Matrix<Scalar, 3, num_nodes>;
+
+  static NodeMatrix reference_nodes() {
+    NodeMatrix X;
+    X.leftCols<4>() << 0, 1, 0, 0,
+                       0, 0, 1, 0,
+                       0, 0, 0, 1;
+    for (int k = 0; k < 6; ++k) X.col(4 + k) = 0.5 * (X.col(edges[k][0]) + X.col(edges[k][1]));
+    return X;
+  }
+
+  static ShapeVector shape(const Vec3& p) {
+    const Scalar L[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
+    ShapeVector N;
+    for (int i = 0; i < 4; ++i) N[i] = L[i] * (2.0 * L[i] - 1.0);
+    for (int k = 0; k < 6; ++k) N[4 + k] = 4.0 * L[edges[k][0]] * L[edges[k][1]];
+    return N;
+  }
+
+  static ShapeGradient gradient(const Vec3& p) {
+    const Scalar L[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
+    // dL_i/dx: rows of the Tet4 gradient.
+    const Scalar dL[4][3] = {{-1, -1, -1}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    ShapeGradient G;
+    for (int i = 0; i < 4; ++i)
+      for (int d = 0; d < 3; ++d) G(i, d) = (4.0 * L[i] - 1.0) * dL[i][d];
+    for (int k = 0; k < 6; ++k) {
+      const int i = edges[k][0], j = edges[k][1];
+      for (int d = 0; d < 3; ++d) G(4 + k, d) = 4.0 * (dL[i][d] * L[j] + L[i] * dL[j][d]);
+    }
+    return G;
+  }
+
+  template <int Degree>
+  static auto quadrature() {
+    static_assert(Degree >= 0 && Degree <= 5, "tetrahedron rules are tabulated up to degree 5");
+    if constexpr (Degree <= 1) return tet_rule_1();
+    else if constexpr (Degree == 2) return tet_rule_4();
+    else return tet_rule_14();
+  }
+  /// Full integration: gradients are linear (stiffness degree 2), mass is quadratic^2.
+  static constexpr int stiffness_degree = 2, mass_degree = 4;
+};
+
+}  // namespace plastifem

@@ -1,0 +1,71 @@
+#pragma once
+// Linear tetrahedron, 4 nodes.
+//
+//            z
+//            3
+//            |\`.
+//            | \  `.            reference nodes:
+//            |  \    `.           0 (0,0,0)   1 (1,0,0)
+//            |   \     `.         2 (0,1,0)   3 (0,0,1)
+//            0----\------2 y
+//             `.   \   .'       VTK_TETRA (10), Gmsh type 4: same numbering.
+//               `.  \.'
+//                  1
+//                 x
+//
+// Shape functions are the barycentric coordinates: N = (1 - x - y - z, x, y, z).
+#include <plastifem/element/quadrature.hpp>
+
+#include <array>
+
+namespace plastifem {
+
+struct Tet4 {
+  static constexpr const char* name = "Tet4";
+  static constexpr int num_nodes = 4;
+  static constexpr int num_vertices = 4;  ///< corner nodes (the first ones)
+  static constexpr int order = 1;         ///< polynomial order of the shape functions
+  static constexpr int vtk_cell_type = 10;
+  static constexpr Scalar reference_volume = 1.0 / 6.0;
+
+  /// Faces with outward normals by the right-hand rule; Tri3.
+  static constexpr int num_faces = 4, nodes_per_face = 3, vtk_face_type = 5;
+  static constexpr std::array<std::array<int, 3>, 4> faces{{{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}}};
+  static constexpr std::array<std::array<int, 2>, 6> edges{{{0, 1}, {1, 2}, {0, 2}, {0, 3}, {1, 3}, {2, 3}}};
+
+  using ShapeVector = Eigen::Matrix<Scalar, num_nodes, 1>;
+  using ShapeGradient = Eigen::Matrix<Scalar, num_nodes, 3>;
+  using NodeMatrix = Eigen::Matrix<Scalar, 3, num_nodes>;
+
+  static NodeMatrix reference_nodes() {
+    NodeMatrix X;
+    X << 0, 1, 0, 0,
+         0, 0, 1, 0,
+         0, 0, 0, 1;
+    return X;
+  }
+
+  static ShapeVector shape(const Vec3& p) { return {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()}; }
+
+  static ShapeGradient gradient(const Vec3& /*p*/) {
+    ShapeGradient G;
+    G << -1, -1, -1,
+          1,  0,  0,
+          0,  1,  0,
+          0,  0,  1;
+    return G;
+  }
+
+  /// Smallest tabulated rule exact for total degree `Degree`.
+  template <int Degree>
+  static auto quadrature() {
+    static_assert(Degree >= 0 && Degree <= 5, "tetrahedron rules are tabulated up to degree 5");
+    if constexpr (Degree <= 1) return tet_rule_1();
+    else if constexpr (Degree == 2) return tet_rule_4();
+    else return tet_rule_14();
+  }
+  /// Full integration: exact stiffness (constant gradients) and exact consistent mass.
+  static constexpr int stiffness_degree = 0, mass_degree = 2;
+};
+
+}  // namespace plastifem

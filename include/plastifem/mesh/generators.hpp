@@ -1,0 +1,300 @@
+#pragma once
+// Structured mesh generators: the bar scenes of SCENES.md (Hex8 grid, Tet4 by the 6-tet Kuhn
+// split or the 5-tet split, Tet10 by mid-edge nodes) and the seed-000 thick shells: a quad
+// surface offset along its normals into Hex8 layers, and the cylindrical tube built that way.
+//
+// Every generator names the node sets and boundary-face sets a scene needs:
+//   box:         xmin xmax ymin ymax zmin zmax
+//   thick shell: bottom (the given surface) top (its offset)
+//   tube:        inner outer xmin xmax
+#include <plastifem/mesh/selection.hpp>
+
+#include <numbers>
+#include <unordered_map>
+
+namespace plastifem {
+
+/// A box [origin, origin + size] divided into nx x ny x nz cells. Defaults: unit cells at 0.
+struct BoxSpec {
+  int nx = 1, ny = 1, nz = 1;
+  Vec3 size = Vec3::Constant(-1);  ///< negative: (nx, ny, nz), i.e. unit cubes as in SCENES.md
+  Vec3 origin = Vec3::Zero();
+};
+
+namespace detail {
+
+inline Vec3 box_size(const BoxSpec& b) { return b.size.x() < 0 ? Vec3(b.nx, b.ny, b.nz) : b.size; }
+
+inline void check_box(const BoxSpec& b) {
+  if (b.nx < 1 || b.ny < 1 || b.nz < 1)
+    fail<InvalidArgument>("box needs at least one cell per direction, got {} x {} x {}", b.nx, b.ny, b.nz);
+  const Vec3 s = box_size(b);
+  if (!(s.array() > 0).all() || !s.allFinite() || !b.origin.allFinite())
+    fail<InvalidArgument>("box size must be finite and positive, got ({}, {}, {})", s.x(), s.y(), s.z());
+}
+
+/// Grid nodes of a box, numbered i + (nx+1) (j + (ny+1) k).
+inline Eigen::Matrix3Xd box_nodes(const BoxSpec& b) {
+  const Vec3 s = box_size(b);
+  Eigen::Matrix3Xd X(3, (b.nx + 1) * (b.ny + 1) * (b.nz + 1));
+  Index n = 0;
+  for (int k = 0; k <= b.nz; ++k)
+    for (int j = 0; j <= b.ny; ++j)
+      for (int i = 0; i <= b.nx; ++i)
+        X.col(n++) = b.origin + Vec3(s.x() * i / b.nx, s.y() * j / b.ny, s.z() * k / b.nz);
+  return X;
+}
+
+/// The 8 grid nodes of cell (i, j, k), indexed by local bits c = di + 2 dj + 4 dk.
+inline std::array<Index, 8> cell_corners(const BoxSpec& b, int i, int j, int k) {
+  std::array<Index, 8> c;
+  for (int bits = 0; bits < 8; ++bits) {
+    const int ii = i + (bits & 1), jj = j + ((bits >> 1) & 1), kk = k + ((bits >> 2) & 1);
+    c[bits] = ii + (b.nx + 1) * (jj + (b.ny + 1) * kk);
+  }
+  return c;
+}
+
+/// Swaps two nodes of a tetrahedron with negative volume so that det J > 0.
+inline void orient_tet(const Eigen::Matrix3Xd& X, std::array<Index, 4>& t) {
+  const Mat3 J = (Mat3() << X.col(t[1]) - X.col(t[0]), X.col(t[2]) - X.col(t[0]), X.col(t[3]) - X.col(t[0]))
+                     .finished();
+  if (J.determinant() < 0) std::swap(t[1], t[2]);
+}
+
+/// Names the six sides of a box as node sets and boundary-face sets.
+template <FiniteElement E>
+void name_box_sides(Mesh<E>& mesh, const BoxSpec& b) {
+  const Vec3 lo = b.origin, hi = b.origin + box_size(b);
+  const Scalar tol = 1e-9 * (hi - lo).norm();
+  const char* names[3][2] = {{"xmin", "xmax"}, {"ymin", "ymax"}, {"zmin", "zmax"}};
+  for (int d = 0; d < 3; ++d)
+    for (int side = 0; side < 2; ++side) {
+      const Scalar v = side ? hi[d] : lo[d];
+      auto on_side = [&](const Vec3& p) { return std::abs(p[d] - v) <= tol; };
+      mesh.add_node_set(names[d][side], select_nodes(mesh, on_side));
+      mesh.add_face_set(names[d][side], select_boundary_faces(mesh, on_side));
+    }
+}
+
+}  // namespace detail
+
+/// Hex8 grid, one element per cell.
+inline Mesh<Hex8> box_hex8(const BoxSpec& b) {
+  detail::check_box(b);
+  std::vector<Mesh<Hex8>::Connectivity> cells;
+  cells.reserve(static_cast<size_t>(b.nx) * b.ny * b.nz);
+  for (int k = 0; k < b.nz; ++k)
+    for (int j = 0; j < b.ny; ++j)
+      for (int i = 0; i < b.nx; ++i) {
+        const auto c = detail::cell_corners(b, i, j, k);
+        // local bits -> Hex8 numbering: 0 (000) 1 (100) 2 (110) 3 (010), then the top layer.
+        cells.push_back({c[0], c[1], c[3], c[2], c[4], c[5], c[7], c[6]});
+      }
+  Mesh<Hex8> mesh(detail::box_nodes(b), std::move(cells));
+  detail::name_box_sides(mesh, b);
+  return mesh;
+}
+
+/// Tet4 grid: each cell split into 6 tetrahedra around its diagonal (0,0,0)-(1,1,1) (Kuhn /
+/// Freudenthal). Every cell is split the same way, so neighbours' face diagonals match.
+inline Mesh<Tet4> box_tet4_kuhn(const BoxSpec& b) {
+  detail::check_box(b);
+  const Eigen::Matrix3Xd X = detail::box_nodes(b);
+  // Path 0 -> e_a -> e_a + e_b -> (1,1,1) for each permutation (a, b, c) of the axes.
+  static constexpr int paths[6][2] = {{1, 3}, {1, 5}, {2, 3}, {2, 6}, {4, 5}, {4, 6}};
+  std::vector<Mesh<Tet4>::Connectivity> tets;
+  tets.reserve(static_cast<size_t>(b.nx) * b.ny * b.nz * 6);
+  for (int k = 0; k < b.nz; ++k)
+    for (int j = 0; j < b.ny; ++j)
+      for (int i = 0; i < b.nx; ++i) {
+        const auto c = detail::cell_corners(b, i, j, k);
+        for (const auto& p : paths) {
+          std::array<Index, 4> t{c[0], c[p[0]], c[p[1]], c[7]};
+          detail::orient_tet(X, t);
+          tets.push_back(t);
+        }
+      }
+  Mesh<Tet4> mesh(X, std::move(tets));
+  detail::name_box_sides(mesh, b);
+  return mesh;
+}
+
+/// Tet4 grid: each cell split into 5 tetrahedra (one central, four corners), mirrored on
+/// alternate cells (parity of i + j + k) so that face diagonals match across neighbours.
+inline Mesh<Tet4> box_tet4_five(const BoxSpec& b) {
+  detail::check_box(b);
+  const Eigen::Matrix3Xd X = detail::box_nodes(b);
+  static constexpr int even[5][4] = {{1, 2, 4, 7}, {0, 1, 2, 4}, {3, 1, 2, 7}, {5, 1, 4, 7}, {6, 2, 4, 7}};
+  static constexpr int odd[5][4] = {{0, 3, 5, 6}, {1, 0, 3, 5}, {2, 0, 3, 6}, {4, 0, 5, 6}, {7, 3, 5, 6}};
+  std::vector<Mesh<Tet4>::Connectivity> tets;
+  tets.reserve(static_cast<size_t>(b.nx) * b.ny * b.nz * 5);
+  for (int k = 0; k < b.nz; ++k)
+    for (int j = 0; j < b.ny; ++j)
+      for (int i = 0; i < b.nx; ++i) {
+        const auto c = detail::cell_corners(b, i, j, k);
+        const auto& split = ((i + j + k) % 2 == 0) ? even : odd;
+        for (const auto& s : split) {
+          std::array<Index, 4> t{c[s[0]], c[s[1]], c[s[2]], c[s[3]]};
+          detail::orient_tet(X, t);
+          tets.push_back(t);
+        }
+      }
+  Mesh<Tet4> mesh(X, std::move(tets));
+  detail::name_box_sides(mesh, b);
+  return mesh;
+}
+
+/// Tet10 from Tet4: one new node at the middle of every edge, shared by all tets around it.
+/// Node sets keep their nodes plus the mid-edge nodes whose two ends are both in the set;
+/// face sets carry over unchanged (same element and local face numbers).
+inline Mesh<Tet10> promote_to_tet10(const Mesh<Tet4>& tet4) {
+  std::unordered_map<std::uint64_t, Index> mid;
+  mid.reserve(static_cast<size_t>(tet4.num_elements()) * 2);
+  std::vector<Vec3> extra;
+  std::vector<std::array<Index, 2>> ends;
+  std::vector<Mesh<Tet10>::Connectivity> tets;
+  tets.reserve(tet4.elements().size());
+  const Index n0 = tet4.num_nodes();
+  for (const auto& t : tet4.elements()) {
+    Mesh<Tet10>::Connectivity c;
+    std::copy(t.begin(), t.end(), c.begin());
+    for (int k = 0; k < 6; ++k) {
+      Index a = t[Tet10::edges[k][0]], b = t[Tet10::edges[k][1]];
+      if (a > b) std::swap(a, b);
+      const std::uint64_t key = (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
+      auto [it, inserted] = mid.try_emplace(key, n0 + static_cast<Index>(extra.size()));
+      if (inserted) {
+        extra.push_back(0.5 * (tet4.node(a) + tet4.node(b)));
+        ends.push_back({a, b});
+      }
+      c[4 + k] = it->second;
+    }
+    tets.push_back(c);
+  }
+  Eigen::Matrix3Xd X(3, n0 + static_cast<Index>(extra.size()));
+  X.leftCols(n0) = tet4.nodes();
+  for (size_t k = 0; k < extra.size(); ++k) X.col(n0 + static_cast<Index>(k)) = extra[k];
+  Mesh<Tet10> mesh(std::move(X), std::move(tets));
+  for (const auto& [name, ids] : tet4.node_sets()) {
+    std::vector<char> in(n0, 0);
+    for (Index i : ids) in[i] = 1;
+    std::vector<Index> out = ids;
+    for (size_t k = 0; k < ends.size(); ++k)
+      if (in[ends[k][0]] && in[ends[k][1]]) out.push_back(n0 + static_cast<Index>(k));
+    mesh.add_node_set(name, std::move(out));
+  }
+  for (const auto& [name, faces] : tet4.face_sets()) mesh.add_face_set(name, faces);
+  return mesh;
+}
+
+/// The bar scenes of SCENES.md: nx x ny x nz unit cubes (Hex8, Kuhn Tet4, or its Tet10).
+template <FiniteElement E>
+Mesh<E> bar_mesh(int nx, int ny, int nz) {
+  const BoxSpec b{nx, ny, nz};
+  if constexpr (std::is_same_v<E, Hex8>) return box_hex8(b);
+  else if constexpr (std::is_same_v<E, Tet4>) return box_tet4_kuhn(b);
+  else return promote_to_tet10(box_tet4_kuhn(b));
+}
+
+/// A quad surface mesh: nodes and quads (4 node ids, counter-clockwise seen from the side the
+/// normal points to).
+struct QuadSurface {
+  Eigen::Matrix3Xd nodes;
+  std::vector<std::array<Index, 4>> quads;
+};
+
+/// Thick shell: the surface offset along its (area-weighted, averaged) vertex normals by
+/// `thickness` in `layers` Hex8 layers. Negative thickness offsets against the normals.
+inline Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int layers) {
+  if (layers < 1) fail<InvalidArgument>("thick shell needs at least one layer, got {}", layers);
+  if (!(std::abs(thickness) > 0) || !std::isfinite(thickness))
+    fail<InvalidArgument>("thick shell thickness must be finite and non-zero, got {}", thickness);
+  const Index n = static_cast<Index>(s.nodes.cols());
+  Eigen::Matrix3Xd normal = Eigen::Matrix3Xd::Zero(3, n);
+  for (size_t q = 0; q < s.quads.size(); ++q) {
+    const auto& f = s.quads[q];
+    for (Index v : f)
+      if (v < 0 || v >= n) fail<MeshError>("surface quad {}: node {} out of range [0, {})", q, v, n);
+    // Twice the area vector of a (possibly non-planar) quad: cross product of its diagonals.
+    const Vec3 a = (s.nodes.col(f[2]) - s.nodes.col(f[0])).cross(s.nodes.col(f[3]) - s.nodes.col(f[1]));
+    for (Index v : f) normal.col(v) += a;
+  }
+  for (Index v = 0; v < n; ++v) {
+    const Scalar len = normal.col(v).norm();
+    if (!(len > 0)) fail<MeshError>("surface node {} belongs to no quad or has no defined normal", v);
+    normal.col(v) /= len;
+  }
+  Eigen::Matrix3Xd X(3, n * (layers + 1));
+  for (int l = 0; l <= layers; ++l) X.middleCols(l * n, n) = s.nodes + normal * (thickness * l / layers);
+  std::vector<Mesh<Hex8>::Connectivity> hexes;
+  hexes.reserve(s.quads.size() * layers);
+  for (int l = 0; l < layers; ++l)
+    for (const auto& f : s.quads) {
+      const Index lo = l * n, hi = (l + 1) * n;
+      if (thickness > 0)
+        hexes.push_back({f[0] + lo, f[1] + lo, f[2] + lo, f[3] + lo, f[0] + hi, f[1] + hi, f[2] + hi, f[3] + hi});
+      else  // offset against the normal: the offset layer is the hex's bottom
+        hexes.push_back({f[0] + hi, f[1] + hi, f[2] + hi, f[3] + hi, f[0] + lo, f[1] + lo, f[2] + lo, f[3] + lo});
+    }
+  Mesh<Hex8> mesh(std::move(X), std::move(hexes));
+  std::vector<Index> bottom(n), top(n);
+  for (Index v = 0; v < n; ++v) bottom[v] = v, top[v] = layers * n + v;
+  const int bottom_face = thickness > 0 ? 0 : 1, top_face = 1 - bottom_face;  // Hex8 faces 0 / 1
+  std::vector<FaceRef> fb, ft;
+  const Index nq = static_cast<Index>(s.quads.size());
+  for (Index q = 0; q < nq; ++q) {
+    fb.push_back({q, bottom_face});
+    ft.push_back({(layers - 1) * nq + q, top_face});
+  }
+  mesh.add_node_set("bottom", std::move(bottom));
+  mesh.add_node_set("top", std::move(top));
+  mesh.add_face_set("bottom", std::move(fb));
+  mesh.add_face_set("top", std::move(ft));
+  return mesh;
+}
+
+/// Cylindrical tube along x (a vessel): inner radius r_in, outer r_out, length L; n_circ cells
+/// around, n_axial along, n_radial through the wall. Built as the thick shell of the inner
+/// cylinder (whose vertex normals are exactly radial, so the outer radius is exact).
+inline Mesh<Hex8> tube_hex8(Scalar r_in, Scalar r_out, Scalar length, int n_circ, int n_axial, int n_radial) {
+  if (!(r_in > 0) || !(r_out > r_in) || !(length > 0))
+    fail<InvalidArgument>("tube needs 0 < r_in < r_out and length > 0, got r_in={}, r_out={}, length={}", r_in,
+                          r_out, length);
+  if (n_circ < 3 || n_axial < 1 || n_radial < 1)
+    fail<InvalidArgument>("tube needs n_circ >= 3, n_axial >= 1, n_radial >= 1, got {}, {}, {}", n_circ, n_axial,
+                          n_radial);
+  QuadSurface s;
+  s.nodes.resize(3, static_cast<Index>(n_circ) * (n_axial + 1));
+  for (int a = 0; a <= n_axial; ++a)
+    for (int c = 0; c < n_circ; ++c) {
+      const Scalar t = 2 * std::numbers::pi * c / n_circ;
+      s.nodes.col(a * n_circ + c) = Vec3(length * a / n_axial, r_in * std::cos(t), r_in * std::sin(t));
+    }
+  // Counter-clockwise seen from outside (normal pointing away from the axis).
+  for (int a = 0; a < n_axial; ++a)
+    for (int c = 0; c < n_circ; ++c) {
+      const Index c1 = (c + 1) % n_circ;
+      s.quads.push_back({a * n_circ + c, a * n_circ + c1, (a + 1) * n_circ + c1, (a + 1) * n_circ + c});
+    }
+  // Averaged normals of a regular polygon are radial; if this winding points inwards, flip.
+  const Vec3 n0 = (s.nodes.col(s.quads[0][2]) - s.nodes.col(s.quads[0][0]))
+                      .cross(s.nodes.col(s.quads[0][3]) - s.nodes.col(s.quads[0][1]));
+  if (n0.dot(s.nodes.col(s.quads[0][0]) - Vec3(s.nodes(0, s.quads[0][0]), 0, 0)) < 0)
+    for (auto& q : s.quads) std::swap(q[1], q[3]);
+  Mesh<Hex8> mesh = thick_shell_hex8(s, r_out - r_in, n_radial);
+  // The offset moves vertices radially by exactly (r_out - r_in): the outer radius is exact.
+  const Scalar L = length, tol = 1e-9 * (length + r_out);
+  mesh.add_node_set("inner", mesh.node_set("bottom"));
+  mesh.add_node_set("outer", mesh.node_set("top"));
+  mesh.add_face_set("inner", mesh.face_set("bottom"));
+  mesh.add_face_set("outer", mesh.face_set("top"));
+  auto at = [&](Scalar x) { return [=](const Vec3& p) { return std::abs(p.x() - x) <= tol; }; };
+  mesh.add_node_set("xmin", select_nodes(mesh, at(0)));
+  mesh.add_node_set("xmax", select_nodes(mesh, at(L)));
+  mesh.add_face_set("xmin", select_boundary_faces(mesh, at(0)));
+  mesh.add_face_set("xmax", select_boundary_faces(mesh, at(L)));
+  return mesh;
+}
+
+}  // namespace plastifem

@@ -1,0 +1,175 @@
+#pragma once
+// A volume mesh of one element type: node coordinates, connectivity, named node sets and
+// named boundary-face sets. A Mesh is validated when it is built, so every Mesh in a program
+// is usable: indices in range, finite coordinates, no degenerate or inverted element.
+//
+// The mesh is the undeformed reference geometry only. Per-element rest shapes (plasticity)
+// and enriched dofs (X-FEM) live in the solver, which keeps the mesh immutable and shared.
+#include <plastifem/core/error.hpp>
+#include <plastifem/element/element.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <limits>
+#include <cmath>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace plastifem {
+
+/// One face of one element: `element`'s local face `face` (index into E::faces).
+struct FaceRef {
+  Index element;
+  int face;
+  friend bool operator==(const FaceRef&, const FaceRef&) = default;
+};
+
+/// What validation found that is not an error.
+struct MeshReport {
+  std::vector<Index> unused_nodes;  ///< nodes no element refers to (they carry no stiffness)
+  Scalar min_scaled_jacobian = 1;   ///< min over elements and points of det J / (h^3 / V_ref)
+};
+
+template <FiniteElement E>
+class Mesh {
+ public:
+  using Element = E;
+  using Connectivity = std::array<Index, E::num_nodes>;
+  using Nodes = Eigen::Matrix<Scalar, 3, Eigen::Dynamic>;
+
+  Mesh() = default;
+
+  /// Builds and validates; throws MeshError naming the first bad node or element.
+  Mesh(Nodes nodes, std::vector<Connectivity> elements)
+      : nodes_(std::move(nodes)), elements_(std::move(elements)) {
+    report_ = validate();
+  }
+
+  Index num_nodes() const { return static_cast<Index>(nodes_.cols()); }
+  Index num_elements() const { return static_cast<Index>(elements_.size()); }
+  const Nodes& nodes() const { return nodes_; }
+  Vec3 node(Index i) const { return nodes_.col(i); }
+  const std::vector<Connectivity>& elements() const { return elements_; }
+  const Connectivity& element(Index e) const { return elements_[e]; }
+  const MeshReport& report() const { return report_; }
+
+  /// Coordinates of element e's nodes, one per column.
+  ElementNodes<E> element_nodes(Index e) const {
+    ElementNodes<E> X;
+    for (int a = 0; a < E::num_nodes; ++a) X.col(a) = nodes_.col(elements_[e][a]);
+    return X;
+  }
+
+  /// Global node ids of a face, in the element's local face order (outward normal).
+  std::array<Index, E::nodes_per_face> face_nodes(FaceRef f) const {
+    std::array<Index, E::nodes_per_face> ids;
+    for (int k = 0; k < E::nodes_per_face; ++k) ids[k] = elements_[f.element][E::faces[f.face][k]];
+    return ids;
+  }
+
+  // --- named sets (from a generator, a file's physical groups, or a selection) -----------
+  void add_node_set(const std::string& name, std::vector<Index> ids) {
+    for (Index i : ids)
+      if (i < 0 || i >= num_nodes())
+        fail<MeshError>("node set '{}': node {} out of range [0, {})", name, i, num_nodes());
+    node_sets_[name] = std::move(ids);
+  }
+  void add_face_set(const std::string& name, std::vector<FaceRef> faces) {
+    for (const FaceRef& f : faces)
+      if (f.element < 0 || f.element >= num_elements() || f.face < 0 || f.face >= E::num_faces)
+        fail<MeshError>("face set '{}': face (element {}, local face {}) out of range", name, f.element,
+                        f.face);
+    face_sets_[name] = std::move(faces);
+  }
+  bool has_node_set(const std::string& name) const { return node_sets_.count(name) != 0; }
+  bool has_face_set(const std::string& name) const { return face_sets_.count(name) != 0; }
+  const std::vector<Index>& node_set(const std::string& name) const {
+    auto it = node_sets_.find(name);
+    if (it == node_sets_.end()) fail<MeshError>("no node set named '{}'{}", name, list_names(node_sets_));
+    return it->second;
+  }
+  const std::vector<FaceRef>& face_set(const std::string& name) const {
+    auto it = face_sets_.find(name);
+    if (it == face_sets_.end()) fail<MeshError>("no face set named '{}'{}", name, list_names(face_sets_));
+    return it->second;
+  }
+  const std::map<std::string, std::vector<Index>>& node_sets() const { return node_sets_; }
+  const std::map<std::string, std::vector<FaceRef>>& face_sets() const { return face_sets_; }
+
+  /// Checks indices, coordinates and every element's Jacobian at the corners and at the points
+  /// of its mass quadrature rule. Throws MeshError on the first problem; returns what is
+  /// worth knowing but not fatal.
+  MeshReport validate() const {
+    MeshReport r;
+    for (Index i = 0; i < num_nodes(); ++i)
+      if (!nodes_.col(i).allFinite())
+        fail<MeshError>("node {} has a non-finite coordinate ({}, {}, {})", i, nodes_(0, i), nodes_(1, i),
+                        nodes_(2, i));
+    std::vector<char> used(nodes_.cols(), 0);
+    for (Index e = 0; e < num_elements(); ++e) {
+      const auto& c = elements_[e];
+      for (int a = 0; a < E::num_nodes; ++a) {
+        if (c[a] < 0 || c[a] >= num_nodes())
+          fail<MeshError>("element {}, local node {}: node index {} out of range [0, {})", e, a, c[a],
+                          num_nodes());
+        for (int b = 0; b < a; ++b)
+          if (c[b] == c[a])
+            fail<MeshError>("element {} is degenerate: local nodes {} and {} are both node {}", e, b, a, c[a]);
+        used[c[a]] = 1;
+      }
+      r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, check_jacobian(e));
+    }
+    for (Index i = 0; i < num_nodes(); ++i)
+      if (!used[i]) r.unused_nodes.push_back(i);
+    return r;
+  }
+
+ private:
+  // det J scaled by h^3 / V_ref (h: longest element edge), so that the test does not depend on
+  // units; an element is degenerate below 1e-10 of a unit cube's value and inverted below -1e-10.
+  Scalar check_jacobian(Index e) const {
+    const ElementNodes<E> X = element_nodes(e);
+    Scalar h = 0;
+    for (const auto& ed : E::edges) h = std::max(h, (X.col(ed[0]) - X.col(ed[1])).norm());
+    const Scalar scale = E::reference_volume / (h * h * h);
+    const auto Xref = E::reference_nodes();
+    const auto q = E::template quadrature<E::mass_degree>();
+    Scalar worst = std::numeric_limits<Scalar>::max();
+    auto check = [&](const Vec3& xi, const char* what, int k) {
+      const Scalar s = jacobian<E>(X, xi).determinant() * scale;
+      if (!(s > 1e-10)) {
+        if (s < -1e-10)
+          fail<MeshError>("element {} is inverted: det J = {:.3g} at {} {} (reorder its nodes: the {} "
+                          "numbering is documented in element/{}.hpp)",
+                          e, s / scale, what, k, E::name, lower(E::name));
+        fail<MeshError>("element {} is degenerate: det J = {:.3g} at {} {} (zero or near-zero volume)", e,
+                        s / scale, what, k);
+      }
+      worst = std::min(worst, s);
+    };
+    for (int a = 0; a < E::num_vertices; ++a) check(Xref.col(a), "corner", a);
+    for (int k = 0; k < q.size; ++k) check(q.points[k], "quadrature point", k);
+    return worst;
+  }
+  static std::string lower(std::string s) {
+    for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+  }
+  template <class Map>
+  static std::string list_names(const Map& m) {
+    if (m.empty()) return " (the mesh has none)";
+    std::string s = " (have:";
+    for (const auto& [k, v] : m) s += " '" + k + "'";
+    return s + ")";
+  }
+
+  Nodes nodes_;
+  std::vector<Connectivity> elements_;
+  std::map<std::string, std::vector<Index>> node_sets_;
+  std::map<std::string, std::vector<FaceRef>> face_sets_;
+  MeshReport report_;
+};
+
+}  // namespace plastifem

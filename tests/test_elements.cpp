@@ -1,0 +1,200 @@
+// Element traits checked against independent facts: partition of unity, Kronecker property,
+// finite-difference gradients, exact monomial integration (and failure one degree above),
+// closed-form volumes, Jacobian sign.
+#include "catch.hpp"
+
+#include <plastifem/plastifem.hpp>
+
+#include <random>
+
+using namespace plastifem;
+
+namespace {
+
+// A point inside the reference element, drawn uniformly enough for these checks.
+template <FiniteElement E>
+Vec3 random_reference_point(std::mt19937& rng) {
+  std::uniform_real_distribution<Scalar> u(0.0, 1.0);
+  if constexpr (std::is_same_v<E, Hex8>) {
+    return Vec3(2 * u(rng) - 1, 2 * u(rng) - 1, 2 * u(rng) - 1);
+  } else {
+    Vec3 p(u(rng), u(rng), u(rng));
+    while (p.sum() > 1) p = Vec3(u(rng), u(rng), u(rng));
+    return p;
+  }
+}
+
+// Exact integrals of x^a y^b z^c: tet a! b! c! / (a + b + c + 3)!, cube prod of 2/(k+1) for even k.
+Scalar factorial(int n) { return n <= 1 ? 1.0 : n * factorial(n - 1); }
+Scalar tet_monomial(int a, int b, int c) { return factorial(a) * factorial(b) * factorial(c) / factorial(a + b + c + 3); }
+Scalar cube_monomial_1d(int k) { return k % 2 ? 0.0 : 2.0 / (k + 1); }
+Scalar cube_monomial(int a, int b, int c) { return cube_monomial_1d(a) * cube_monomial_1d(b) * cube_monomial_1d(c); }
+
+template <class Q>
+Scalar integrate_monomial(const Q& q, int a, int b, int c) {
+  Scalar s = 0;
+  for (int k = 0; k < q.size; ++k)
+    s += q.weights[k] * std::pow(q.points[k].x(), a) * std::pow(q.points[k].y(), b) * std::pow(q.points[k].z(), c);
+  return s;
+}
+
+// Checks total-degree exactness for tets: all monomials of degree <= d exact to 1e-14 (the
+// tabulated abscissae carry ~18-20 digits), and at least one monomial of degree d+1 off by > 1e-6.
+template <class Q>
+void check_tet_rule(const Q& q) {
+  INFO("tet rule with " << q.size << " points, degree " << q.degree);
+  for (int a = 0; a <= q.degree; ++a)
+    for (int b = 0; a + b <= q.degree; ++b)
+      for (int c = 0; a + b + c <= q.degree; ++c)
+        REQUIRE(integrate_monomial(q, a, b, c) == Approx(tet_monomial(a, b, c)).epsilon(1e-13).margin(1e-15));
+  Scalar worst = 0;
+  const int d = q.degree + 1;
+  for (int a = 0; a <= d; ++a)
+    for (int b = 0; a + b <= d; ++b) {
+      const int c = d - a - b;
+      worst = std::max(worst, std::abs(integrate_monomial(q, a, b, c) / tet_monomial(a, b, c) - 1));
+    }
+  REQUIRE(worst > 1e-6);
+}
+
+template <class Q>
+void check_hex_rule(const Q& q) {
+  INFO("hex rule with " << q.size << " points, degree " << q.degree);
+  for (int a = 0; a <= q.degree; ++a)
+    for (int b = 0; b <= q.degree; ++b)
+      for (int c = 0; c <= q.degree; ++c)
+        REQUIRE(integrate_monomial(q, a, b, c) == Approx(cube_monomial(a, b, c)).epsilon(1e-14).margin(1e-15));
+  const int d = q.degree + 1;  // even: its exact integral is non-zero
+  REQUIRE(std::abs(integrate_monomial(q, d, 0, 0) / cube_monomial(d, 0, 0) - 1) > 1e-6);
+  REQUIRE(std::abs(integrate_monomial(q, 0, d, 0) / cube_monomial(0, d, 0) - 1) > 1e-6);
+  REQUIRE(std::abs(integrate_monomial(q, 0, 0, d) / cube_monomial(0, 0, d) - 1) > 1e-6);
+}
+
+}  // namespace
+
+TEST_CASE("tetrahedron rules are exact to their degree and not above", "[quadrature]") {
+  check_tet_rule(tet_rule_1());
+  check_tet_rule(tet_rule_4());
+  check_tet_rule(tet_rule_14());
+}
+
+TEST_CASE("hexahedron Gauss rules are exact to their degree and not above", "[quadrature]") {
+  check_hex_rule(hex_gauss<1>());
+  check_hex_rule(hex_gauss<2>());
+  check_hex_rule(hex_gauss<3>());
+}
+
+TEMPLATE_TEST_CASE("shape functions: partition of unity, Kronecker property, FD gradients", "[element]", Tet4,
+                   Tet10, Hex8) {
+  using E = TestType;
+  const auto Xref = E::reference_nodes();
+  SECTION("Kronecker property at the nodes") {
+    for (int a = 0; a < E::num_nodes; ++a) {
+      const auto N = E::shape(Xref.col(a));
+      for (int b = 0; b < E::num_nodes; ++b) REQUIRE(N[b] == Approx(a == b ? 1.0 : 0.0).margin(1e-15));
+    }
+  }
+  std::mt19937 rng(42);
+  SECTION("partition of unity, linear completeness, gradient sums") {
+    for (int trial = 0; trial < 50; ++trial) {
+      const Vec3 p = random_reference_point<E>(rng);
+      const auto N = E::shape(p);
+      const auto G = E::gradient(p);
+      REQUIRE(N.sum() == Approx(1.0).epsilon(1e-14));
+      // sum_a N_a X_a = p (isoparametric: reproduces the reference coordinates).
+      REQUIRE(((Xref * N) - p).norm() < 1e-14);
+      REQUIRE(G.colwise().sum().norm() < 1e-14);
+      REQUIRE((Xref * G - Mat3::Identity()).norm() < 1e-14);
+    }
+  }
+  SECTION("reference gradients match central finite differences") {
+    // Shape functions are polynomials of degree <= 3: the central difference error is
+    // h^2/6 f''' ~ 1e-10 for h = 1e-5, above round-off (1e-16 / 1e-5 = 1e-11).
+    const Scalar h = 1e-5;
+    for (int trial = 0; trial < 20; ++trial) {
+      const Vec3 p = random_reference_point<E>(rng);
+      const auto G = E::gradient(p);
+      for (int d = 0; d < 3; ++d) {
+        const Vec3 e = Vec3::Unit(d) * h;
+        const auto fd = ((E::shape(p + e) - E::shape(p - e)) / (2 * h)).eval();
+        REQUIRE((fd - G.col(d)).norm() < 1e-9);
+      }
+    }
+  }
+  SECTION("faces and edges refer to valid local nodes and faces point outwards") {
+    const Vec3 centroid = Xref.rowwise().mean();
+    for (const auto& f : E::faces) {
+      for (int a : f) REQUIRE((a >= 0 && a < E::num_nodes));
+      const Vec3 n = (Xref.col(f[1]) - Xref.col(f[0])).cross(Xref.col(f[2]) - Xref.col(f[0]));
+      REQUIRE(n.dot(Xref.col(f[0]) - centroid) > 0);
+    }
+    for (const auto& ed : E::edges) REQUIRE(ed[0] != ed[1]);
+  }
+}
+
+TEST_CASE("Tet10 mid-edge nodes sit at the middle of their edges", "[element]") {
+  const auto X = Tet10::reference_nodes();
+  for (int k = 0; k < 6; ++k)
+    REQUIRE((X.col(4 + k) - 0.5 * (X.col(Tet10::edges[k][0]) + X.col(Tet10::edges[k][1]))).norm() == 0);
+  // Faces list their mid-edge nodes between the corners they join.
+  for (const auto& f : Tet10::faces)
+    for (int k = 0; k < 3; ++k)
+      REQUIRE((X.col(f[3 + k]) - 0.5 * (X.col(f[k]) + X.col(f[(k + 1) % 3]))).norm() == 0);
+}
+
+TEMPLATE_TEST_CASE("element volumes match closed form", "[element]", Tet4, Tet10, Hex8) {
+  using E = TestType;
+  // Affine map x = A xi + b with det A = 2.7: volume = |det A| * reference volume.
+  Mat3 A;
+  A << 1.2, 0.3, -0.1,
+       0.1, 1.5, 0.2,
+       0.0, -0.2, 1.4;
+  const Vec3 b(0.3, -1.0, 2.0);
+  const ElementNodes<E> Xa = (A * E::reference_nodes()).colwise() + b;
+  REQUIRE(element_volume<E>(Xa) == Approx(A.determinant() * E::reference_volume).epsilon(1e-14));
+  REQUIRE(jacobian<E>(Xa, Vec3(0.1, 0.2, 0.3)).isApprox(A, 1e-14));
+  // Physical gradients of x_d are unit vectors: X^T dN/dx = I.
+  REQUIRE((Xa * physical_gradient<E>(Xa, Vec3(0.2, 0.1, 0.3)) - Mat3::Identity()).norm() < 1e-13);
+}
+
+TEST_CASE("volumes of non-affinely distorted elements match closed form", "[element]") {
+  SECTION("Hex8: a frustum-like hexahedron") {
+    // Unit square bottom at z=0, top square of side s at z=1 (both centred): the exact volume
+    // of this frustum of a square pyramid is (1 + s + s^2) / 3; trilinear interpolation spans
+    // exactly the same ruled surfaces (planar faces).
+    const Scalar s = 0.4;
+    ElementNodes<Hex8> X;
+    X << -0.5, 0.5, 0.5, -0.5, -s / 2, s / 2, s / 2, -s / 2,
+         -0.5, -0.5, 0.5, 0.5, -s / 2, -s / 2, s / 2, s / 2,
+          0, 0, 0, 0, 1, 1, 1, 1;
+    REQUIRE(element_volume<Hex8>(X) == Approx((1 + s + s * s) / 3).epsilon(1e-14));
+  }
+  SECTION("Hex8: a twisted hexahedron (hyperbolic-paraboloid top face)") {
+    // Unit cube with node 6 raised to (1, 1, 1 + t). Trilinear interpolation gives
+    // z = w (1 + t x y) for (x, y, w) in [0, 1]^3, so det J = 1 + t x y and V = 1 + t/4.
+    const Scalar t = 0.5;
+    ElementNodes<Hex8> X;
+    X << 0, 1, 1, 0, 0, 1, 1, 0,
+         0, 0, 1, 1, 0, 0, 1, 1,
+         0, 0, 0, 0, 1, 1, 1 + t, 1;
+    REQUIRE(element_volume<Hex8>(X) == Approx(1 + t / 4).epsilon(1e-14));
+  }
+  SECTION("Tet10: a curved edge") {
+    // Mid-node 4 of edge (0,1) pulled outwards by d along -y: x(xi) = xi + N_4(xi) (0, -d, 0)
+    // with N_4 = 4 L0 L1 = 4 (1 - x - y - z) x, so det J = 1 - d dN_4/dy = 1 + 4 d x and
+    // V = 1/6 + 4 d int x = 1/6 + 4 d / 24 = (1 + d) / 6.
+    const Scalar d = 0.1;
+    ElementNodes<Tet10> X = Tet10::reference_nodes();
+    X(1, 4) -= d;
+    REQUIRE(element_volume<Tet10>(X) == Approx((1 + d) / 6).epsilon(1e-14));
+  }
+}
+
+TEMPLATE_TEST_CASE("Jacobian sign detects inverted elements", "[element]", Tet4, Tet10, Hex8) {
+  using E = TestType;
+  ElementNodes<E> X = E::reference_nodes();
+  REQUIRE(jacobian<E>(X, Vec3(0.2, 0.2, 0.2)).determinant() > 0);
+  X.row(2) *= -1;  // mirror: every det J flips sign
+  REQUIRE(jacobian<E>(X, Vec3(0.2, 0.2, 0.2)).determinant() < 0);
+  REQUIRE(element_volume<E>(X) == Approx(-E::reference_volume));
+}

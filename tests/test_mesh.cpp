@@ -1,0 +1,188 @@
+// Mesh validation, selections, boundary extraction and the generators.
+#include "catch.hpp"
+
+#include <plastifem/plastifem.hpp>
+
+#include <set>
+
+using namespace plastifem;
+
+namespace {
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+Scalar total_volume(const auto& mesh) {
+  using E = typename std::decay_t<decltype(mesh)>::Element;
+  Scalar v = 0;
+  for (Index e = 0; e < mesh.num_elements(); ++e) v += element_volume<E>(mesh.element_nodes(e));
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("bar scene generators match SCENES.md counts", "[generators]") {
+  // SCENES.md table: (nx, ny, nz) -> hexes, nodes.
+  struct Row { int nx, ny, nz, hexes, nodes; };
+  for (Row r : {Row{10, 3, 3, 90, 176}, Row{20, 6, 6, 720, 1029}, Row{40, 12, 12, 5760, 6929}}) {
+    const auto hex = bar_mesh<Hex8>(r.nx, r.ny, r.nz);
+    REQUIRE(hex.num_elements() == r.hexes);
+    REQUIRE(hex.num_nodes() == r.nodes);
+    const auto tet = bar_mesh<Tet4>(r.nx, r.ny, r.nz);
+    REQUIRE(tet.num_elements() == 6 * r.hexes);
+    REQUIRE(tet.num_nodes() == r.nodes);
+    // Summing n element volumes (1/6 is inexact in binary) loses up to n * eps relative:
+    // 34,560 tets * 1.1e-16 = 3.8e-12.
+    REQUIRE(total_volume(hex) == Approx(r.nx * r.ny * r.nz).epsilon(4e-12));
+    REQUIRE(total_volume(tet) == Approx(r.nx * r.ny * r.nz).epsilon(4e-12));
+  }
+}
+
+TEST_CASE("Tet10 mid-edge nodes are shared between neighbours", "[generators]") {
+  const auto tet4 = bar_mesh<Tet4>(10, 3, 3);
+  std::set<std::pair<Index, Index>> edges;
+  for (const auto& t : tet4.elements())
+    for (const auto& e : Tet4::edges) edges.insert(std::minmax(t[e[0]], t[e[1]]));
+  const auto tet10 = bar_mesh<Tet10>(10, 3, 3);
+  REQUIRE(tet10.num_nodes() == tet4.num_nodes() + static_cast<Index>(edges.size()));
+  // Unique edges of the Kuhn-split grid: the 3 axis directions, 3 face diagonals (1,1,0)-type
+  // and the cube diagonal. Counted independently: 1029 edges... for bar90 it is:
+  const int nx = 10, ny = 3, nz = 3;
+  const int axis = nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz;
+  const int face_diagonals = nx * ny * (nz + 1) + nx * (ny + 1) * nz + (nx + 1) * ny * nz;
+  const int body_diagonals = nx * ny * nz;
+  REQUIRE(static_cast<int>(edges.size()) == axis + face_diagonals + body_diagonals);
+  REQUIRE(total_volume(tet10) == Approx(90).epsilon(1e-13));
+  // The node sets of the box sides gain the mid-edge nodes that lie on them.
+  for (Index i : tet10.node_set("xmin")) REQUIRE(tet10.node(i).x() == 0);
+  REQUIRE(tet10.node_set("xmin").size() == 4 * 4 + (3 * 4 * 2 + 3 * 3));  // vertices + edges on x=0
+}
+
+TEST_CASE("5-tet split is conforming", "[generators]") {
+  const auto m = box_tet4_five({4, 3, 2});
+  REQUIRE(m.num_elements() == 5 * 24);
+  REQUIRE(total_volume(m) == Approx(24).epsilon(1e-13));
+  // Conforming: the boundary consists only of the box's outer faces (2 triangles per cell face).
+  const auto boundary = boundary_faces(m);
+  REQUIRE(boundary.size() == 2u * 2 * (4 * 3 + 4 * 2 + 3 * 2));
+  // Same for the Kuhn split.
+  REQUIRE(boundary_faces(box_tet4_kuhn({4, 3, 2})).size() == boundary.size());
+}
+
+TEST_CASE("box side sets and boundary surface", "[mesh]") {
+  const auto m = box_hex8({3, 2, 2, Vec3(3.0, 1.0, 1.0), Vec3(-1, 0, 0)});
+  REQUIRE(m.node_set("xmin").size() == 9);
+  REQUIRE(m.face_set("xmax").size() == 4);
+  for (const FaceRef& f : m.face_set("xmax"))
+    for (Index i : m.face_nodes(f)) REQUIRE(m.node(i).x() == Approx(2.0));
+  const auto s = extract_surface(m);
+  REQUIRE(s.faces.size() == 2u * (3 * 2 + 3 * 2 + 2 * 2));
+  // Outward normals: the surface encloses the volume (divergence theorem with x: V = 1/3 sum x.n A).
+  Scalar v = 0;
+  for (const auto& q : s.connectivity) {
+    const Vec3 a = m.node(q[0]), b = m.node(q[1]), c = m.node(q[2]), d = m.node(q[3]);
+    const Vec3 area = 0.5 * (c - a).cross(d - b);
+    v += (a + b + c + d).dot(area) / 4 / 3;
+  }
+  REQUIRE(v == Approx(3.0).epsilon(1e-13));
+  REQUIRE(select_nodes_in_box(m, Vec3(-1, 0, 0), Vec3(-1, 1, 1)).size() == 9);
+  REQUIRE(contains(error_of([&] { (void)m.node_set("clamp"); }), "no node set named 'clamp'"));
+}
+
+TEST_CASE("thick shell and tube generators", "[generators]") {
+  SECTION("tube volume converges to the annulus volume") {
+    // Polygonal cross-section with n sides inscribed at r_in, offset radially: area of the
+    // polygonal annulus = n/2 sin(2 pi/n) (r_out^2 - r_in^2), exact for the straight-sided hexes.
+    const Scalar ri = 1.0, ro = 1.5, L = 4.0;
+    const int n = 24;
+    const auto m = tube_hex8(ri, ro, L, n, 8, 2);
+    REQUIRE(m.num_elements() == n * 8 * 2);
+    REQUIRE(m.num_nodes() == n * 9 * 3);
+    const Scalar area = n / 2.0 * std::sin(2 * std::numbers::pi / n) * (ro * ro - ri * ri);
+    REQUIRE(total_volume(m) == Approx(area * L).epsilon(1e-12));
+    for (Index i : m.node_set("outer")) REQUIRE(std::hypot(m.node(i).y(), m.node(i).z()) == Approx(ro).epsilon(1e-14));
+    for (Index i : m.node_set("inner")) REQUIRE(std::hypot(m.node(i).y(), m.node(i).z()) == Approx(ri).epsilon(1e-14));
+    REQUIRE(m.face_set("xmin").size() == static_cast<size_t>(n * 2));
+    REQUIRE(boundary_faces(m).size() == static_cast<size_t>(2 * n * 8 + 2 * n * 2));
+  }
+  SECTION("thick shell of a flat quad grid is a box, either offset direction") {
+    QuadSurface s;
+    s.nodes.resize(3, 9);
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) s.nodes.col(i + 3 * j) = Vec3(i, j, 0);
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < 2; ++i) s.quads.push_back({i + 3 * j, i + 1 + 3 * j, i + 1 + 3 * (j + 1), i + 3 * (j + 1)});
+    for (Scalar t : {0.5, -0.5}) {
+      const auto m = thick_shell_hex8(s, t, 3);
+      REQUIRE(m.num_elements() == 12);
+      REQUIRE(total_volume(m) == Approx(4 * 0.5).epsilon(1e-14));
+      for (Index i : m.node_set("top")) REQUIRE(m.node(i).z() == Approx(t));
+    }
+  }
+  SECTION("bad arguments") {
+    REQUIRE(contains(error_of([] { tube_hex8(1.0, 0.5, 1.0, 8, 2, 1); }), "r_in < r_out"));
+    REQUIRE(contains(error_of([] { box_hex8({0, 1, 1}); }), "at least one cell"));
+  }
+}
+
+// ---- validation errors name the element / node -------------------------------------------
+TEST_CASE("mesh validation gives clear errors", "[mesh][errors]") {
+  Eigen::Matrix3Xd X = Tet4::reference_nodes();
+  SECTION("index out of range") {
+    const auto msg = error_of([&] { Mesh<Tet4>(X, {{0, 1, 2, 7}}); });
+    REQUIRE(contains(msg, "element 0, local node 3: node index 7 out of range [0, 4)"));
+  }
+  SECTION("negative index") {
+    REQUIRE(contains(error_of([&] { Mesh<Tet4>(X, {{0, 1, -2, 3}}); }), "node index -2 out of range"));
+  }
+  SECTION("repeated node") {
+    REQUIRE(contains(error_of([&] { Mesh<Tet4>(X, {{0, 1, 1, 3}}); }), "element 0 is degenerate"));
+  }
+  SECTION("non-finite coordinate") {
+    X(1, 2) = std::numeric_limits<Scalar>::quiet_NaN();
+    REQUIRE(contains(error_of([&] { Mesh<Tet4>(X, {{0, 1, 2, 3}}); }), "node 2 has a non-finite coordinate"));
+    X(1, 2) = std::numeric_limits<Scalar>::infinity();
+    REQUIRE(contains(error_of([&] { Mesh<Tet4>(X, {{0, 1, 2, 3}}); }), "node 2 has a non-finite coordinate"));
+  }
+  SECTION("inverted element") {
+    Eigen::Matrix3Xd Y(3, 5);
+    Y << X, Vec3(1, 1, 1);
+    const auto msg = error_of([&] { Mesh<Tet4>(Y, {{0, 1, 2, 3}, {1, 2, 3, 4}, {0, 2, 1, 3}}); });
+    REQUIRE(contains(msg, "element 2 is inverted"));
+  }
+  SECTION("flat element") {
+    X.col(3) = Vec3(0.3, 0.3, 0.0);
+    REQUIRE(contains(error_of([&] { Mesh<Tet4>(X, {{0, 1, 2, 3}}); }), "element 0 is degenerate: det J"));
+  }
+  SECTION("Hex8 inverted at one corner only (non-convex)") {
+    // Push node 6 through the opposite face: det J < 0 near corner 6 while the centre may be fine.
+    auto H = Hex8::reference_nodes();
+    H.col(6) = Vec3(-0.8, -0.8, -0.8);
+    REQUIRE(contains(error_of([&] { Mesh<Hex8>(H, {{0, 1, 2, 3, 4, 5, 6, 7}}); }), "element 0 is inverted"));
+  }
+  SECTION("Tet10 with a mid-edge node pushed past the opposite edge") {
+    auto T = Tet10::reference_nodes();
+    T.col(4) = Vec3(0.5, 0.9, 0.0);  // far outside the valid region for the (0,1) mid-node
+    const auto msg = error_of([&] { Mesh<Tet10>(T, {{0, 1, 2, 3, 4, 5, 6, 7, 8, 9}}); });
+    REQUIRE((contains(msg, "element 0 is inverted") || contains(msg, "element 0 is degenerate")));
+  }
+  SECTION("unused nodes are reported, not fatal") {
+    Eigen::Matrix3Xd Y(3, 6);
+    Y << X, Vec3(5, 5, 5), Vec3(6, 6, 6);
+    const Mesh<Tet4> m(Y, {{0, 1, 2, 3}});
+    REQUIRE(m.report().unused_nodes == std::vector<Index>{4, 5});
+  }
+  SECTION("node and face sets are checked") {
+    Mesh<Tet4> m(X, {{0, 1, 2, 3}});
+    REQUIRE(contains(error_of([&] { m.add_node_set("s", {0, 9}); }), "node set 's': node 9 out of range"));
+    REQUIRE(contains(error_of([&] { m.add_face_set("f", {{0, 4}}); }), "local face 4"));
+  }
+}
