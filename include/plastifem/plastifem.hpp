@@ -6,3 +6,4 @@
 #include <plastifem/mesh/generators.hpp>
 #include <plastifem/mesh/mesh.hpp>
 #include <plastifem/mesh/selection.hpp>
+#include <plastifem/solver/solver.hpp>

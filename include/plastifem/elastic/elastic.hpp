@@ -1,0 +1,25 @@
+#pragma once
+// The ElasticModel concept: what the solver needs from an elastic policy.
+#include <plastifem/elastic/corotational.hpp>
+#include <plastifem/elastic/linear.hpp>
+
+namespace plastifem {
+
+/// An elastic policy: per-element data prepared once from the rest shape and material, then
+/// internal force, tangent and strain energy at any current configuration, and the stress for
+/// output. All static: no virtual calls in the element loop.
+template <class M, class E>
+concept ElasticModel =
+    FiniteElement<E> &&
+    requires(const typename M::template ElementData<E>& data, const ElementNodes<E>& x, ElementVector<E>& f,
+             ElementMatrix<E>* K, const Material& m) {
+      { M::name } -> std::convertible_to<const char*>;
+      { M::constant_tangent } -> std::convertible_to<bool>;
+      { M::template prepare<E>(x, m) } -> std::same_as<typename M::template ElementData<E>>;
+      { M::template evaluate<E>(data, x, f, K) } -> std::same_as<Scalar>;
+      { M::template cauchy_stress<E>(data, x, m) } -> std::same_as<Mat3>;
+    };
+
+static_assert(ElasticModel<Linear, Hex8> && ElasticModel<Corotational, Tet10>);
+
+}  // namespace plastifem

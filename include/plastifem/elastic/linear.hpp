@@ -1,0 +1,39 @@
+#pragma once
+// Linear elasticity: f = K0 (x - X0), tangent K0 (seed 001 sections 3.5-3.6).
+// Not invariant under rotation: a rigidly rotated element feels "ghost" forces, which is why
+// Corotational exists (tests/test_elastic.cpp measures them).
+#include <plastifem/elastic/small_strain.hpp>
+
+namespace plastifem {
+
+struct Linear {
+  static constexpr const char* name = "Linear";
+  static constexpr bool constant_tangent = true;  ///< K does not depend on x: assemble once
+
+  template <FiniteElement E>
+  using ElementData = SmallStrainData<E>;
+
+  template <FiniteElement E>
+  static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
+    return prepare_small_strain<E>(X0, m);
+  }
+
+  /// Internal force f and (optionally) tangent K at current positions x; returns strain energy.
+  template <FiniteElement E>
+  static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
+                         ElementMatrix<E>* K) {
+    const ElementVector<E> u = as_vector<E>(x) - as_vector<E>(d.X0);
+    f.noalias() = d.K0 * u;
+    if (K) *K = d.K0;
+    return 0.5 * u.dot(f);
+  }
+
+  /// Cauchy stress at the element centre: sigma = C sym(grad u).
+  template <FiniteElement E>
+  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
+    const Mat3 H = (x - d.X0) * d.G_centre;
+    return hooke(m, 0.5 * (H + H.transpose()));
+  }
+};
+
+}  // namespace plastifem

@@ -1,0 +1,63 @@
+#pragma once
+// Isotropic material constants, validated once so that every model can trust them.
+#include <plastifem/core/error.hpp>
+#include <plastifem/core/types.hpp>
+
+#include <cmath>
+
+namespace plastifem {
+
+struct Material {
+  Scalar young = 0;    ///< E > 0
+  Scalar poisson = 0;  ///< -1 < nu < 0.5
+  Scalar density = 0;  ///< rho > 0
+
+  /// Lame constants mu = E / (2 (1 + nu)), lambda = E nu / ((1 + nu)(1 - 2 nu)).
+  Scalar mu() const { return young / (2 * (1 + poisson)); }
+  Scalar lambda() const { return young * poisson / ((1 + poisson) * (1 - 2 * poisson)); }
+
+  /// From Lame constants: E = mu (3 lambda + 2 mu) / (lambda + mu), nu = lambda / (2 (lambda + mu)).
+  static Material from_lame(Scalar lambda, Scalar mu, Scalar density) {
+    if (!(mu > 0) || !(lambda + 2.0 / 3.0 * mu > 0))
+      fail<InvalidArgument>("Lame constants need mu > 0 and bulk modulus lambda + 2 mu / 3 > 0, got lambda = {}, "
+                            "mu = {}",
+                            lambda, mu);
+    return Material{mu * (3 * lambda + 2 * mu) / (lambda + mu), lambda / (2 * (lambda + mu)), density}.validated();
+  }
+
+  /// Throws InvalidArgument unless E > 0, -1 < nu < 0.5 and rho > 0 (all finite).
+  const Material& validated() const {
+    if (!(young > 0) || !std::isfinite(young))
+      fail<InvalidArgument>("Young's modulus must be finite and > 0, got E = {}", young);
+    if (!(poisson > -1 && poisson < 0.5))
+      fail<InvalidArgument>("Poisson ratio must satisfy -1 < nu < 0.5, got nu = {} (nu = 0.5 is incompressible: "
+                            "use nu = 0.49 to 0.499)",
+                            poisson);
+    if (!(density > 0) || !std::isfinite(density))
+      fail<InvalidArgument>("density must be finite and > 0, got rho = {}", density);
+    return *this;
+  }
+};
+
+/// Isotropic elasticity tensor in Voigt form (xx, yy, zz, xy, yz, zx; engineering shear).
+inline Eigen::Matrix<Scalar, 6, 6> voigt_elasticity(const Material& m) {
+  const Scalar mu = m.mu(), la = m.lambda();
+  Eigen::Matrix<Scalar, 6, 6> C = Eigen::Matrix<Scalar, 6, 6>::Zero();
+  C.topLeftCorner<3, 3>().setConstant(la);
+  C.topLeftCorner<3, 3>().diagonal().array() += 2 * mu;
+  C.bottomRightCorner<3, 3>().diagonal().setConstant(mu);
+  return C;
+}
+
+/// Linear isotropic stress sigma = 2 mu eps + lambda tr(eps) I.
+inline Mat3 hooke(const Material& m, const Mat3& eps) {
+  return 2 * m.mu() * eps + m.lambda() * eps.trace() * Mat3::Identity();
+}
+
+/// Von Mises equivalent stress sqrt(3/2 s:s), s the deviator.
+inline Scalar von_mises(const Mat3& sigma) {
+  const Mat3 s = sigma - sigma.trace() / 3 * Mat3::Identity();
+  return std::sqrt(1.5 * s.squaredNorm());
+}
+
+}  // namespace plastifem

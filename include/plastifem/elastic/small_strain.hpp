@@ -1,0 +1,62 @@
+#pragma once
+// What the small-strain models (Linear, Corotational) precompute per element: the rest shape,
+// its stiffness K0 = sum_q w_q det J_q B_q^T C B_q (full Gauss integration) and the shape
+// gradients at the element centre (where Corotational extracts its rotation and where stress
+// is reported).
+//
+// K0 is built block-wise from seed 001 eq. (30): for nodes a, b with physical gradients g_a, g_b
+//   K0_ab(p, q) = mu g_a[q] g_b[p] + mu delta_pq (g_a . g_b) + lambda g_a[p] g_b[q].
+#include <plastifem/elastic/material.hpp>
+#include <plastifem/element/element.hpp>
+
+namespace plastifem {
+
+template <FiniteElement E>
+using ElementVector = Eigen::Matrix<Scalar, 3 * E::num_nodes, 1>;
+template <FiniteElement E>
+using ElementMatrix = Eigen::Matrix<Scalar, 3 * E::num_nodes, 3 * E::num_nodes>;
+template <FiniteElement E>
+using ShapeGradients = Eigen::Matrix<Scalar, E::num_nodes, 3>;
+
+/// Reference coordinates of the element centre (mean of the corners).
+template <FiniteElement E>
+Vec3 reference_centre() {
+  return E::reference_nodes().leftCols(E::num_vertices).rowwise().mean();
+}
+
+/// The element's nodal vector view of a 3 x N node matrix (dof 3a + d, as ElementNodes stores it).
+template <FiniteElement E>
+Eigen::Map<const ElementVector<E>> as_vector(const ElementNodes<E>& X) {
+  return Eigen::Map<const ElementVector<E>>(X.data());
+}
+
+template <FiniteElement E>
+struct SmallStrainData {
+  ElementNodes<E> X0;          ///< rest positions
+  ElementMatrix<E> K0;         ///< small-strain stiffness in the rest frame
+  ShapeGradients<E> G_centre;  ///< dN/dX at the element centre
+};
+
+template <FiniteElement E>
+SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Material& m) {
+  SmallStrainData<E> d;
+  d.X0 = X0;
+  d.K0.setZero();
+  const Scalar mu = m.mu(), la = m.lambda();
+  const auto q = E::template quadrature<E::stiffness_degree>();
+  for (int k = 0; k < q.size; ++k) {
+    const Scalar dv = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
+    const ShapeGradients<E> G = physical_gradient<E>(X0, q.points[k]);
+    for (int a = 0; a < E::num_nodes; ++a)
+      for (int b = 0; b < E::num_nodes; ++b) {
+        const Eigen::Matrix<Scalar, 1, 3> ga = G.row(a), gb = G.row(b);
+        Mat3 block = mu * gb.transpose() * ga + la * ga.transpose() * gb;
+        block.diagonal().array() += mu * ga.dot(gb);
+        d.K0.template block<3, 3>(3 * a, 3 * b) += dv * block;
+      }
+  }
+  d.G_centre = physical_gradient<E>(X0, reference_centre<E>());
+  return d;
+}
+
+}  // namespace plastifem

@@ -1,0 +1,702 @@
+#pragma once
+// Solver<Element, Elastic, Plastic, Enrichment>: the one type a simulator holds. It owns the
+// per-element data (prepared once from the rest shapes), the sparse pattern, the boundary
+// conditions and loads, and the state (u, v, a, t); it solves for static equilibrium and
+// advances in time with Newmark's method.
+//
+// Newmark (beta, gamma), seed 001 section 3.5 and [1]; from t_n to t_{n+1} = t_n + dt:
+//   a(u) = (u - u_n - dt v_n) / (beta dt^2) - (1 / (2 beta) - 1) a_n
+//   v(u) = v_n + dt ((1 - gamma) a_n + gamma a(u))
+//   r(u) = M a(u) + D v(u) + f_int(u) - f_ext(t_{n+1}) = 0,   D = alpha M + beta_R K(u)
+// Newton on r with the tangent  A = (1/(beta dt^2) + alpha gamma/(beta dt)) M
+//                                  + (1 + beta_R gamma/(beta dt)) K(u).
+//   - Accurate mode: Newton to convergence (residual and increment tolerances) with a
+//     backtracking line search on |r| (the residual of a non-conservative corotational force has
+//     no potential to search on, so the norm is used for every model).
+//   - Real-time mode: one linearised solve from u_n per step (what SOFA and VegaFEM do); for a
+//     Linear model the two modes coincide.
+// Initial acceleration from equilibrium: M a_0 = f_ext(0) - f_int(u_0) - D v_0, unless given.
+// A step that fails (no convergence, NaN, singular system) throws SolverError and leaves the
+// state exactly as it was: all work happens in scratch vectors, committed at the end.
+#include <plastifem/elastic/elastic.hpp>
+#include <plastifem/enrichment/none.hpp>
+#include <plastifem/mesh/selection.hpp>
+#include <plastifem/plastic/none.hpp>
+#include <plastifem/solver/boundary.hpp>
+#include <plastifem/solver/linear_solver.hpp>
+
+#include <chrono>
+#include <span>
+
+namespace plastifem {
+
+enum class MassKind { Consistent, Lumped };
+enum class NewmarkMode { Accurate, RealTime };
+
+struct NewtonSettings {
+  /// Converged when |r| <= tol * max(|f_ext|, |f_int|) over free dofs. 1e-6 matches the CG
+  /// tolerance the benchmarks use; with the corotational (warped) tangent Newton converges
+  /// linearly, so much tighter values cost many iterations.
+  Scalar residual_tolerance = 1e-6;
+  Scalar increment_tolerance = 1e-10;  ///< or when |du| <= tol * (|u| + mesh size)
+  int max_iterations = 50;
+  bool line_search = true;
+};
+
+struct NewmarkSettings {
+  Scalar beta = 0.25, gamma = 0.5;  ///< average acceleration: unconditionally stable, no dissipation
+  NewmarkMode mode = NewmarkMode::Accurate;
+};
+
+/// What one step or static solve did.
+struct StepReport {
+  int newton_iterations = 0;
+  int linear_iterations = 0;     ///< summed over Newton iterations
+  Scalar residual = 0;           ///< final |r| (accurate mode) or |r| before the one solve (real time)
+  Scalar relative_residual = 0;  ///< residual / force scale
+  int load_steps = 1;            ///< statics: increments used (after automatic cutting)
+  double wall_ms = 0;
+};
+
+struct SolverSettings {
+  MassKind mass = MassKind::Consistent;
+  NewmarkSettings newmark;
+  NewtonSettings newton;
+  LinearSolverSettings linear;  ///< dynamics (default: warm-started Jacobi CG, 1e-8)
+  LinearSolverSettings static_linear{LinearSolverKind::Direct};
+  Scalar rayleigh_mass = 0, rayleigh_stiffness = 0;  ///< D = alpha M + beta K
+  int threads = 0;                                   ///< element loops; 0: OpenMP default
+};
+
+template <FiniteElement E, class Elastic, class Plastic = NoPlasticity, class Enrich = NoEnrichment>
+  requires ElasticModel<Elastic, E>
+class Solver {
+  static_assert(std::is_same_v<Plastic, NoPlasticity>, "plastic policies other than NoPlasticity arrive with seed 000");
+  static_assert(std::is_same_v<Enrich, NoEnrichment>, "enrichment policies other than NoEnrichment arrive with seed 001");
+
+ public:
+  using Element = E;
+  using ElasticModel = Elastic;
+  using Data = typename Elastic::template ElementData<E>;
+  static constexpr int N = E::num_nodes;
+
+  Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings = {})
+      : mesh_(mesh), material_(material.validated()), settings_(settings), assembler_(mesh),
+        linear_(settings.linear), static_linear_(settings.static_linear) {
+    validate_settings(settings_);
+    const Index ne = mesh_.num_elements();
+    data_.reserve(ne);
+    for (Index e = 0; e < ne; ++e) data_.push_back(Elastic::template prepare<E>(mesh_.element_nodes(e), material_));
+    const Index n = num_dofs();
+    u_ = v_ = a_ = Vector::Zero(n);
+    constrained_.assign(n, 0);
+    build_mass();
+    K_ = assembler_.pattern();
+    A_ = assembler_.pattern();
+    f_int_.resize(n), f_ext_.resize(n), r_.resize(n), du_.resize(n), rhs_.resize(n);
+    u_try_.resize(n), a_try_.resize(n), v_try_.resize(n), work_.resize(n), prescribed_.resize(n);
+    X_ = Eigen::Map<const Vector>(mesh_.nodes().data(), n);
+    mesh_size_ = (mesh_.nodes().rowwise().maxCoeff() - mesh_.nodes().rowwise().minCoeff()).norm();
+  }
+
+  // --- problem set-up ---------------------------------------------------------------------
+  const Mesh<E>& mesh() const { return mesh_; }
+  const Material& material() const { return material_; }
+  const SolverSettings& settings() const { return settings_; }
+  Index num_dofs() const { return 3 * mesh_.num_nodes(); }
+  void set_settings(const SolverSettings& s) {
+    validate_settings(s);
+    settings_ = s;
+    linear_.set_settings(s.linear);
+    static_linear_.set_settings(s.static_linear);
+    build_mass();
+  }
+
+  /// Fixes the given nodes (all components, or those in `mask`).
+  void fix(std::span<const Index> nodes, DofMask mask = {}) { prescribe(nodes, {}, mask); }
+
+  /// Prescribes u(t, X) on the given nodes (components in `mask`); e.g. a grasper pull.
+  void prescribe(std::span<const Index> nodes, PrescribedDisplacement u, DofMask mask = {}) {
+    check_nodes(nodes, "boundary condition");
+    dirichlet_.push_back({std::vector<Index>(nodes.begin(), nodes.end()), mask, std::move(u)});
+    for (Index i : nodes)
+      for (int d = 0; d < 3; ++d)
+        if (mask[d]) constrained_[3 * i + d] = 1;
+    initial_acceleration_known_ = false;
+  }
+
+  /// Force `f` on each of the given nodes, scaled by `curve(t)`.
+  void add_nodal_force(std::span<const Index> nodes, const Vec3& f, LoadCurve curve = {}) {
+    check_nodes(nodes, "nodal force");
+    check_finite(f, "nodal force");
+    Vector F = Vector::Zero(num_dofs());
+    for (Index i : nodes) F.segment<3>(3 * i) += f;
+    loads_.push_back({std::move(F), std::move(curve), "nodal force"});
+    initial_acceleration_known_ = false;
+  }
+
+  /// Body force per unit mass (gravity), as consistent nodal loads rho int N_a g dV.
+  void add_gravity(const Vec3& g, LoadCurve curve = {}) {
+    check_finite(g, "gravity");
+    Vector F = Vector::Zero(num_dofs());
+    const auto q = E::template quadrature<E::mass_degree>();
+    for (Index e = 0; e < mesh_.num_elements(); ++e) {
+      const ElementNodes<E> X = mesh_.element_nodes(e);
+      for (int k = 0; k < q.size; ++k) {
+        const Scalar dm = material_.density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
+        const auto Nk = E::shape(q.points[k]);
+        for (int a = 0; a < N; ++a) F.segment<3>(3 * mesh_.element(e)[a]) += dm * Nk[a] * g;
+      }
+    }
+    loads_.push_back({std::move(F), std::move(curve), "gravity"});
+    initial_acceleration_known_ = false;
+  }
+
+  /// Traction t (force per unit reference area) on boundary faces, as consistent nodal loads
+  /// int_face N_a t dA. Faces are integrated with the element's own shape functions on the
+  /// face (the reference face is mapped into the reference element), with a rule exact for
+  /// the face's N_a times its area element on flat faces.
+  void add_traction(const std::vector<FaceRef>& faces, const Vec3& t, LoadCurve curve = {}) {
+    check_finite(t, "traction");
+    Vector F = Vector::Zero(num_dofs());
+    for (const FaceRef& f : faces) {
+      if (f.element < 0 || f.element >= mesh_.num_elements() || f.face < 0 || f.face >= E::num_faces)
+        fail<InvalidArgument>("traction: face (element {}, local face {}) out of range", f.element, f.face);
+      const ElementNodes<E> X = mesh_.element_nodes(f.element);
+      for_each_face_point(f.face, [&](const Vec3& xi, const Vec3& dxi_ds, const Vec3& dxi_dt, Scalar w) {
+        const Mat3 J = jacobian<E>(X, xi);
+        const Scalar dA = (J * dxi_ds).cross(J * dxi_dt).norm();
+        const auto Nf = E::shape(xi);
+        for (int a = 0; a < N; ++a) F.segment<3>(3 * mesh_.element(f.element)[a]) += w * dA * Nf[a] * t;
+      });
+    }
+    loads_.push_back({std::move(F), std::move(curve), "traction"});
+    initial_acceleration_known_ = false;
+  }
+
+  /// Removes every load (boundary conditions stay).
+  void clear_loads() {
+    loads_.clear();
+    initial_acceleration_known_ = false;
+  }
+
+  // --- state ------------------------------------------------------------------------------
+  Scalar time() const { return time_; }
+  const Vector& displacement() const { return u_; }
+  const Vector& velocity() const { return v_; }
+  const Vector& acceleration() const { return a_; }
+  Vec3 displacement(Index node) const { return u_.segment<3>(3 * node); }
+  /// Current positions x = X + u, one node per column.
+  Eigen::Matrix3Xd positions() const {
+    Eigen::Matrix3Xd x = mesh_.nodes();
+    x += Eigen::Map<const Eigen::Matrix3Xd>(u_.data(), 3, mesh_.num_nodes());
+    return x;
+  }
+  void set_state(const Vector& u, const Vector& v, Scalar time = 0) {
+    if (u.size() != num_dofs() || v.size() != num_dofs())
+      fail<InvalidArgument>("state vectors need {} entries, got {} and {}", num_dofs(), u.size(), v.size());
+    if (!u.allFinite() || !v.allFinite()) fail<InvalidArgument>("state vectors must be finite");
+    u_ = u, v_ = v, time_ = time;
+    initial_acceleration_known_ = false;
+  }
+  /// Uses `a` as the acceleration at the current time instead of solving for equilibrium.
+  void set_acceleration(const Vector& a) {
+    if (a.size() != num_dofs() || !a.allFinite())
+      fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
+    a_ = a;
+    initial_acceleration_known_ = true;
+  }
+
+  // --- solving ----------------------------------------------------------------------------
+  /// Static equilibrium f_int(u) = f_ext(t) at the current time, by Newton with `load_steps`
+  /// increments of the loads and prescribed displacements; an increment that fails is halved
+  /// (up to 10 times) before giving up. Velocity and acceleration are set to zero.
+  StepReport solve_static(int load_steps = 1) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (load_steps < 1) fail<InvalidArgument>("load_steps must be >= 1, got {}", load_steps);
+    if (std::none_of(constrained_.begin(), constrained_.end(), [](char c) { return c; }))
+      fail<SolverError>("static solve: no degree of freedom is constrained, so the body can move rigidly and "
+                        "K is singular; fix some nodes (Solver::fix) first");
+    external_force(time_, f_ext_);
+    const Vector f_target = f_ext_;
+    prescribed_values(time_, prescribed_);
+    const Vector g_target = prescribed_;
+    Vector u = u_;
+    const Vector u_start = u_;
+    StepReport rep;
+    Scalar done = 0, step = 1.0 / load_steps;
+    int cuts = 0, increments = 0;
+    while (done < 1 - 1e-12) {
+      const Scalar s = std::min(1.0, done + step);
+      Vector u_trial = u;
+      try {
+        for (Index i = 0; i < num_dofs(); ++i)
+          if (constrained_[i]) u_trial[i] = u_start[i] + s * (g_target[i] - u_start[i]);
+        f_ext_ = s * f_target;
+        const StepReport r = newton_static(u_trial);
+        rep.newton_iterations += r.newton_iterations;
+        rep.linear_iterations += r.linear_iterations;
+        rep.residual = r.residual;
+        rep.relative_residual = r.relative_residual;
+        u = u_trial;
+        done = s;
+        ++increments;
+      } catch (const SolverError& err) {
+        if (Elastic::constant_tangent || ++cuts > 10)
+          fail<SolverError>("static solve failed at load fraction {:.4g} after {} cuts: {}", s, cuts, err.what());
+        step /= 2;
+      }
+    }
+    u_ = u;
+    v_.setZero();
+    a_.setZero();
+    initial_acceleration_known_ = true;
+    rep.load_steps = increments;
+    rep.wall_ms = ms_since(t0);
+    return rep;
+  }
+
+  /// One Newmark step of size dt. Throws SolverError (state unchanged) if it fails.
+  StepReport step(Scalar dt) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
+    if (!initial_acceleration_known_) solve_initial_acceleration();
+    const auto& nm = settings_.newmark;
+    const Scalar t1 = time_ + dt;
+    const Scalar c0 = 1 / (nm.beta * dt * dt), c1 = nm.gamma / (nm.beta * dt);
+    const Scalar alpha = settings_.rayleigh_mass, betaR = settings_.rayleigh_stiffness;
+    const Scalar mass_coef = c0 + alpha * c1, stiff_coef = 1 + betaR * c1;
+    external_force(t1, f_ext_);
+    prescribed_values(t1, prescribed_);
+
+    // Start from u_n with the constrained dofs at their new values.
+    u_try_ = u_;
+    for (Index i = 0; i < num_dofs(); ++i)
+      if (constrained_[i]) u_try_[i] = prescribed_[i];
+
+    StepReport rep;
+    const bool realtime = nm.mode == NewmarkMode::RealTime;
+    const int max_it = realtime ? 1 : settings_.newton.max_iterations;
+    Scalar scale = 0;
+    bool converged = false;
+    for (int it = 0; it < max_it; ++it) {
+      dynamic_residual(u_try_, dt, c0, true);  // fills r_, K_, a_try_, v_try_
+      const Scalar rnorm = free_norm(r_);
+      scale = std::max(scale, force_scale());
+      rep.residual = rnorm;
+      rep.relative_residual = rnorm / scale;
+      if (!std::isfinite(rnorm)) fail<SolverError>("step at t = {}: the residual is not finite", t1);
+      if (!realtime && it > 0 && rnorm <= settings_.newton.residual_tolerance * scale) {
+        converged = true;
+        break;
+      }
+      form_system(mass_coef, stiff_coef);
+      rhs_ = -r_;
+      du_.setZero();
+      apply_dirichlet(A_, rhs_);
+      const LinearSolveReport lr = linear_.solve(A_, rhs_, du_);
+      rep.linear_iterations += lr.iterations;
+      ++rep.newton_iterations;
+      Scalar s = 1;
+      if (!realtime && settings_.newton.line_search) s = line_search(u_try_, du_, rnorm, dt, c0);
+      u_try_ += s * du_;
+      // A linear model is solved exactly by one Newton step when the linear solve converged.
+      if (realtime || (Elastic::constant_tangent && lr.converged)) {
+        converged = true;
+        break;
+      }
+      if (s * du_.norm() <= settings_.newton.increment_tolerance * (u_try_.norm() + mesh_size_)) {
+        dynamic_residual(u_try_, dt, c0, false);
+        rep.residual = free_norm(r_);
+        rep.relative_residual = rep.residual / scale;
+        converged = rep.residual <= std::sqrt(settings_.newton.residual_tolerance) * scale;
+        if (converged) break;
+      }
+    }
+    if (!converged)
+      fail<SolverError>("Newmark step at t = {} did not converge in {} Newton iterations (|r| = {:.3g}, relative "
+                        "{:.3g}); the state is unchanged. Try a smaller dt or more iterations",
+                        t1, rep.newton_iterations, rep.residual, rep.relative_residual);
+    // Commit.
+    a_try_ = c0 * (u_try_ - u_) - c0 * dt * v_ - (1 / (2 * nm.beta) - 1) * a_;
+    v_try_ = v_ + dt * ((1 - nm.gamma) * a_ + nm.gamma * a_try_);
+    if (!u_try_.allFinite() || !v_try_.allFinite())
+      fail<SolverError>("Newmark step at t = {} produced non-finite values; the state is unchanged", t1);
+    u_.swap(u_try_);
+    v_.swap(v_try_);
+    a_.swap(a_try_);
+    time_ = t1;
+    rep.wall_ms = ms_since(t0);
+    return rep;
+  }
+
+  // --- observables ------------------------------------------------------------------------
+  Scalar kinetic_energy() const {
+    symmetric_multiply(M_, v_, work_);
+    return 0.5 * v_.dot(work_);
+  }
+  /// Elastic strain energy summed over elements.
+  Scalar strain_energy() const {
+    Scalar w = 0;
+    ElementVector<E> fe;
+    for (Index e = 0; e < mesh_.num_elements(); ++e)
+      w += Elastic::template evaluate<E>(data_[e], current_nodes(e, u_), fe, nullptr);
+    return w;
+  }
+  /// Work potential of the external loads at the current time: f_ext . u.
+  Scalar external_work_potential() const {
+    Vector f(num_dofs());
+    external_force(time_, f);
+    return f.dot(u_);
+  }
+  /// Deformed volume.
+  Scalar volume() const {
+    Scalar v = 0;
+    for (Index e = 0; e < mesh_.num_elements(); ++e) v += element_volume<E>(current_nodes(e, u_));
+    return v;
+  }
+  /// Total mass, 1^T M 1 per direction.
+  Scalar mass() const { return M_.sum() / 3; }
+  /// Reaction forces at constrained dofs: f_int + M a + D v - f_ext (zero elsewhere).
+  Vector reaction_forces() const {
+    Vector f(num_dofs()), fe(num_dofs()), r(num_dofs());
+    internal_force(u_, f);
+    external_force(time_, fe);
+    symmetric_multiply(M_, a_, r);
+    r += f - fe;
+    if (settings_.rayleigh_mass != 0 || settings_.rayleigh_stiffness != 0) {
+      Vector mv(num_dofs());
+      symmetric_multiply(M_, v_, mv);
+      r += settings_.rayleigh_mass * mv;
+      if (settings_.rayleigh_stiffness != 0) {
+        SparseMatrix K = assembler_.pattern();
+        assemble_tangent(u_, K);
+        symmetric_multiply(K, v_, mv);
+        r += settings_.rayleigh_stiffness * mv;
+      }
+    }
+    for (Index i = 0; i < num_dofs(); ++i)
+      if (!constrained_[i]) r[i] = 0;
+    return r;
+  }
+  /// Internal elastic forces at the current state.
+  Vector internal_force() const {
+    Vector f(num_dofs());
+    internal_force(u_, f);
+    return f;
+  }
+  /// Tangent stiffness at the current state (full symmetric storage).
+  SparseMatrix tangent() const {
+    SparseMatrix K = assembler_.pattern();
+    assemble_tangent(u_, K);
+    return K;
+  }
+  const SparseMatrix& mass_matrix() const { return M_; }
+  /// Cauchy stress per element at its centre.
+  std::vector<Mat3> element_stress() const {
+    std::vector<Mat3> s(mesh_.num_elements());
+    for (Index e = 0; e < mesh_.num_elements(); ++e)
+      s[e] = Elastic::template cauchy_stress<E>(data_[e], current_nodes(e, u_), material_);
+    return s;
+  }
+  Vector von_mises_stress() const {
+    const auto s = element_stress();
+    Vector vm(static_cast<Index>(s.size()));
+    for (size_t e = 0; e < s.size(); ++e) vm[static_cast<Index>(e)] = von_mises(s[e]);
+    return vm;
+  }
+  bool is_constrained(Index dof) const { return constrained_[dof] != 0; }
+
+ private:
+  static void validate_settings(const SolverSettings& s) {
+    const auto& nm = s.newmark;
+    if (!(nm.gamma >= 0.5) || !(nm.beta >= 0.25 * (0.5 + nm.gamma) * (0.5 + nm.gamma) - 1e-15) || nm.beta > 0.5)
+      fail<InvalidArgument>("Newmark parameters beta = {}, gamma = {} are not unconditionally stable: need gamma >= "
+                            "1/2 and (gamma + 1/2)^2 / 4 <= beta <= 1/2 (default 1/4, 1/2)",
+                            nm.beta, nm.gamma);
+    if (!(s.rayleigh_mass >= 0) || !(s.rayleigh_stiffness >= 0))
+      fail<InvalidArgument>("Rayleigh coefficients must be >= 0, got alpha = {}, beta = {}", s.rayleigh_mass,
+                            s.rayleigh_stiffness);
+    if (!(s.newton.residual_tolerance > 0) || s.newton.max_iterations < 1)
+      fail<InvalidArgument>("Newton needs a positive tolerance and at least one iteration");
+    if (!(s.linear.tolerance > 0) || s.linear.max_iterations < 1)
+      fail<InvalidArgument>("CG needs a positive tolerance and at least one iteration");
+  }
+  void check_nodes(std::span<const Index> nodes, const char* what) const {
+    for (Index i : nodes)
+      if (i < 0 || i >= mesh_.num_nodes())
+        fail<InvalidArgument>("{}: node {} out of range [0, {})", what, i, mesh_.num_nodes());
+  }
+  static void check_finite(const Vec3& v, const char* what) {
+    if (!v.allFinite()) fail<InvalidArgument>("{} must be finite, got ({}, {}, {})", what, v.x(), v.y(), v.z());
+  }
+  static double ms_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  }
+
+  ElementNodes<E> current_nodes(Index e, const Vector& u) const {
+    ElementNodes<E> x;
+    const auto& c = mesh_.element(e);
+    for (int a = 0; a < N; ++a) x.col(a) = X_.segment<3>(3 * c[a]) + u.segment<3>(3 * c[a]);
+    return x;
+  }
+
+  /// Calls f(xi, dxi/ds, dxi/dt, weight) at the quadrature points of local face `face`, mapped
+  /// into the reference element. Tri faces: 3-point degree-2 rule (exact for Tet10's quadratic
+  /// N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a times a bilinear dA).
+  template <class F>
+  static void for_each_face_point(int face, F&& f) {
+    const auto Xref = E::reference_nodes();
+    const auto& fn = E::faces[face];
+    if constexpr (E::nodes_per_face == 4) {
+      const Scalar g = 0.57735026918962576451;
+      for (Scalar s : {-g, g})
+        for (Scalar t : {-g, g}) {
+          // Bilinear map of the reference face corners (flat faces of the reference cube).
+          const Scalar Ns[4] = {(1 - s) * (1 - t) / 4, (1 + s) * (1 - t) / 4, (1 + s) * (1 + t) / 4,
+                                (1 - s) * (1 + t) / 4};
+          const Scalar dNs[4] = {-(1 - t) / 4, (1 - t) / 4, (1 + t) / 4, -(1 + t) / 4};
+          const Scalar dNt[4] = {-(1 - s) / 4, -(1 + s) / 4, (1 + s) / 4, (1 - s) / 4};
+          Vec3 xi = Vec3::Zero(), ds = Vec3::Zero(), dt = Vec3::Zero();
+          for (int k = 0; k < 4; ++k) {
+            xi += Ns[k] * Xref.col(fn[k]);
+            ds += dNs[k] * Xref.col(fn[k]);
+            dt += dNt[k] * Xref.col(fn[k]);
+          }
+          f(xi, ds, dt, 1.0);
+        }
+    } else {
+      // Strang-Fix 3-point rule on the unit triangle (area 1/2), degree 2.
+      const Scalar pts[3][2] = {{1.0 / 6, 1.0 / 6}, {2.0 / 3, 1.0 / 6}, {1.0 / 6, 2.0 / 3}};
+      const Vec3 p0 = Xref.col(fn[0]), e1 = Xref.col(fn[1]) - p0, e2 = Xref.col(fn[2]) - p0;
+      for (const auto& p : pts) f(Vec3(p0 + p[0] * e1 + p[1] * e2), e1, e2, 1.0 / 6);
+    }
+  }
+
+  void build_mass() {
+    M_ = assembler_.pattern();
+    Scalar* values = M_.valuePtr();
+    const auto q = E::template quadrature<E::mass_degree>();
+    Eigen::Matrix<Scalar, N, N> Me;
+    for (Index e = 0; e < mesh_.num_elements(); ++e) {
+      const ElementNodes<E> X = mesh_.element_nodes(e);
+      Me.setZero();
+      for (int k = 0; k < q.size; ++k) {
+        const auto Nk = E::shape(q.points[k]);
+        Me += (material_.density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant()) * Nk * Nk.transpose();
+      }
+      if (settings_.mass == MassKind::Lumped) {
+        // HRZ lumping: the diagonal scaled to keep the element mass; positive for Tet10, whose
+        // row sums would give negative corner masses.
+        const Scalar total = Me.sum(), diag = Me.diagonal().sum();
+        const Eigen::Matrix<Scalar, N, 1> d = Me.diagonal() * (total / diag);
+        Me.setZero();
+        Me.diagonal() = d;
+      }
+      assembler_.add_element_scalar_matrix(e, Me, values);
+    }
+  }
+
+  void external_force(Scalar t, Vector& f) const {
+    f.setZero();
+    for (const auto& l : loads_) f += (l.curve ? l.curve(t) : 1.0) * l.force;
+  }
+
+  void prescribed_values(Scalar t, Vector& g) const {
+    g.setZero();
+    for (const auto& bc : dirichlet_) {
+      if (!bc.displacement) continue;
+      for (Index i : bc.nodes) {
+        const Vec3 d = bc.displacement(t, mesh_.node(i));
+        if (!d.allFinite()) fail<InvalidArgument>("prescribed displacement at node {}, t = {} is not finite", i, t);
+        for (int k = 0; k < 3; ++k)
+          if (bc.mask[k]) g[3 * i + k] = d[k];
+      }
+    }
+  }
+
+  /// f = f_int(u); with K: also the tangent, written into K's values (pattern fixed).
+  void assemble(const Vector& u, Vector& f, SparseMatrix* K) const {
+    f.setZero();
+    Scalar* values = K ? K->valuePtr() : nullptr;
+    if (K) std::fill(values, values + K->nonZeros(), 0.0);
+    assembler_.for_each_element(
+        [&](Index e) {
+          ElementVector<E> fe;
+          ElementMatrix<E> Ke;
+          Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, K ? &Ke : nullptr);
+          const auto& c = mesh_.element(e);
+          for (int a = 0; a < N; ++a) f.segment<3>(3 * c[a]) += fe.template segment<3>(3 * a);
+          if (K) assembler_.add_element_matrix(e, Ke, values);
+        },
+        settings_.threads);
+  }
+  void internal_force(const Vector& u, Vector& f) const { assemble(u, f, nullptr); }
+  void assemble_tangent(const Vector& u, SparseMatrix& K) const {
+    Vector f(num_dofs());
+    assemble(u, f, &K);
+  }
+
+  /// r_ = M a(u) + D v(u) + f_int(u) - f_ext; fills a_try_, v_try_ and (optionally) K_.
+  void dynamic_residual(const Vector& u, Scalar dt, Scalar c0, bool tangent) {
+    const auto& nm = settings_.newmark;
+    const bool constant = Elastic::constant_tangent;
+    if (constant) {
+      if (!K_assembled_) {
+        assemble_tangent(u, K_);
+        K_assembled_ = true;
+      }
+      symmetric_multiply(K_, u, f_int_);
+      // Linear: f_int = K0 (x - X0) = K u.
+    } else {
+      assemble(u, f_int_, tangent ? &K_ : nullptr);
+    }
+    a_try_ = c0 * (u - u_) - c0 * dt * v_ - (1 / (2 * nm.beta) - 1) * a_;
+    v_try_ = v_ + dt * ((1 - nm.gamma) * a_ + nm.gamma * a_try_);
+    symmetric_multiply(M_, a_try_, r_);
+    r_ += f_int_ - f_ext_;
+    if (settings_.rayleigh_mass != 0 || settings_.rayleigh_stiffness != 0) {
+      symmetric_multiply(M_, v_try_, work_);
+      r_ += settings_.rayleigh_mass * work_;
+      if (settings_.rayleigh_stiffness != 0) {
+        symmetric_multiply(K_, v_try_, work_);
+        r_ += settings_.rayleigh_stiffness * work_;
+      }
+    }
+  }
+
+  /// Scale for relative residuals: the largest of the force terms in the balance.
+  Scalar force_scale() const {
+    const Scalar s = std::max({free_norm(f_ext_), free_norm(f_int_), 1e-30});
+    return s;
+  }
+  Scalar free_norm(const Vector& v) const {
+    Scalar s = 0;
+    for (Index i = 0; i < num_dofs(); ++i)
+      if (!constrained_[i]) s += v[i] * v[i];
+    return std::sqrt(s);
+  }
+
+  /// A_ = mass_coef M + stiff_coef K_ (same pattern: one pass over the values).
+  void form_system(Scalar mass_coef, Scalar stiff_coef) {
+    const Index nnz = A_.nonZeros();
+    Scalar* a = A_.valuePtr();
+    const Scalar* m = M_.valuePtr();
+    const Scalar* k = K_.valuePtr();
+    for (Index i = 0; i < nnz; ++i) a[i] = mass_coef * m[i] + stiff_coef * k[i];
+  }
+
+  /// Constrained dofs: the increment is zero there (u already holds the prescribed value), so
+  /// rows and columns become identity and the right-hand side zero. Keeps A symmetric.
+  void apply_dirichlet(SparseMatrix& A, Vector& b) const {
+    const int* outer = A.outerIndexPtr();
+    const int* inner = A.innerIndexPtr();
+    Scalar* val = A.valuePtr();
+    for (Index j = 0; j < num_dofs(); ++j)
+      for (int k = outer[j]; k < outer[j + 1]; ++k) {
+        const Index i = inner[k];
+        if (constrained_[i] || constrained_[j]) val[k] = (i == j) ? 1.0 : 0.0;
+      }
+    for (Index i = 0; i < num_dofs(); ++i)
+      if (constrained_[i]) b[i] = 0;
+  }
+
+  /// Backtracking on |r|: halve the step while the residual does not decrease.
+  Scalar line_search(const Vector& u, const Vector& du, Scalar r0, Scalar dt, Scalar c0) {
+    Scalar s = 1;
+    Vector& trial = work2_;
+    for (int k = 0; k < 8; ++k) {
+      trial = u + s * du;
+      dynamic_residual(trial, dt, c0, false);
+      const Scalar r = free_norm(r_);
+      if (std::isfinite(r) && r < (1 - 1e-4 * s) * r0) return s;
+      s *= 0.5;
+    }
+    return 1;  // no decrease found: take the Newton step and let the iteration cap decide
+  }
+
+  StepReport newton_static(Vector& u) {
+    StepReport rep;
+    Scalar scale = std::max(free_norm(f_ext_), 1e-30);
+    for (int it = 0; it < settings_.newton.max_iterations + 1; ++it) {
+      assemble(u, f_int_, &K_);
+      r_ = f_int_ - f_ext_;
+      const Scalar rnorm = free_norm(r_);
+      if (!std::isfinite(rnorm)) fail<SolverError>("static Newton: the residual is not finite");
+      scale = std::max(scale, free_norm(f_int_));
+      rep.residual = rnorm;
+      rep.relative_residual = rnorm / scale;
+      if (rnorm <= settings_.newton.residual_tolerance * scale) return rep;
+      if (it == settings_.newton.max_iterations) break;
+      A_ = K_;
+      rhs_ = -r_;
+      du_.setZero();
+      apply_dirichlet(A_, rhs_);
+      const LinearSolveReport lr = static_linear_.solve(A_, rhs_, du_);
+      rep.linear_iterations += lr.iterations;
+      ++rep.newton_iterations;
+      // Backtracking on |r|.
+      // Backtracking on |r|; if no step length decreases it (the corotational tangent is not
+      // the exact Jacobian, so the direction need not descend), take the full Newton step.
+      Scalar s = 1;
+      if (settings_.newton.line_search && !Elastic::constant_tangent) {
+        bool decreased = false;
+        for (int k = 0; k < 8 && !decreased; ++k) {
+          work2_ = u + s * du_;
+          internal_force(work2_, work_);
+          work_ -= f_ext_;
+          const Scalar r = free_norm(work_);
+          decreased = std::isfinite(r) && r < (1 - 1e-4 * s) * rnorm;
+          if (!decreased) s *= 0.5;
+        }
+        if (!decreased) s = 1;
+      }
+      u += s * du_;
+    }
+    fail<SolverError>("static Newton did not converge in {} iterations (|r| = {:.3g}, relative {:.3g})",
+                      settings_.newton.max_iterations, rep.residual, rep.relative_residual);
+  }
+
+  /// M a_0 = f_ext(t) - f_int(u) - D v at the current time; zero at constrained dofs.
+  void solve_initial_acceleration() {
+    external_force(time_, f_ext_);
+    internal_force(u_, f_int_);
+    rhs_ = f_ext_ - f_int_;
+    if (settings_.rayleigh_mass != 0 || settings_.rayleigh_stiffness != 0) {
+      symmetric_multiply(M_, v_, work_);
+      rhs_ -= settings_.rayleigh_mass * work_;
+      if (settings_.rayleigh_stiffness != 0) {
+        assemble_tangent(u_, K_);
+        symmetric_multiply(K_, v_, work_);
+        rhs_ -= settings_.rayleigh_stiffness * work_;
+      }
+    }
+    A_ = M_;
+    apply_dirichlet(A_, rhs_);
+    LinearSolver direct({LinearSolverKind::Direct});
+    Vector a = Vector::Zero(num_dofs());
+    direct.solve(A_, rhs_, a);
+    a_ = a;
+    initial_acceleration_known_ = true;
+  }
+
+  Mesh<E> mesh_;  // a copy: the solver stays valid whatever happens to the caller's mesh
+  Material material_;
+  SolverSettings settings_;
+  Assembler<E> assembler_;
+  std::vector<Data> data_;
+  LinearSolver linear_, static_linear_;
+  std::vector<DirichletCondition> dirichlet_;
+  std::vector<ExternalLoad> loads_;
+  std::vector<char> constrained_;
+  SparseMatrix M_, K_, A_;
+  bool K_assembled_ = false;
+  Vector X_, u_, v_, a_;
+  Vector f_int_, f_ext_, r_, du_, rhs_, u_try_, a_try_, v_try_, prescribed_;
+  mutable Vector work_;
+  Vector work2_;
+  Scalar time_ = 0, mesh_size_ = 1;
+  bool initial_acceleration_known_ = false;
+};
+
+}  // namespace plastifem
