@@ -7,3 +7,4 @@
 #include <plastifem/mesh/mesh.hpp>
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/solver/solver.hpp>
+#include <plastifem/mesh/io/io.hpp>

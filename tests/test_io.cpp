@@ -1,0 +1,676 @@
+// Mesh I/O: .vtu write/read round trips (bit-exact), .pvd series, Gmsh 2.2/4.1, legacy .vtk, and
+// the error discipline of every reader ("file:line: what was expected").
+#include <plastifem/mesh/generators.hpp>
+#include <plastifem/mesh/io/io.hpp>
+
+#include <chrono>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <tuple>
+
+#include "catch.hpp"
+
+using namespace plastifem;
+
+namespace {
+
+std::string out_path(const std::string& name) { return std::string(PLASTIFEM_TEST_OUT) + "/io_" + name; }
+std::string data_path(const std::string& name) { return std::string(PLASTIFEM_TEST_DATA) + "/" + name; }
+
+std::string write_text(const std::string& name, const std::string& text) {
+  const std::string path = out_path(name);
+  std::ofstream(path, std::ios::binary) << text;
+  return path;
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/// The message of the IoError that f() throws; fails the test if it throws none.
+template <class F>
+std::string io_error(F&& f) {
+  try {
+    f();
+  } catch (const IoError& e) {
+    return e.what();
+  }
+  FAIL("expected an IoError");
+  return {};
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+/// Same shape and the same bits (so -0.0, denormals etc. are compared exactly).
+bool bit_equal(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() &&
+         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
+
+Eigen::MatrixXd random_matrix(Eigen::Index rows, Eigen::Index cols, std::mt19937& rng, double scale = 1) {
+  std::uniform_real_distribution<double> d(-scale, scale);
+  Eigen::MatrixXd m(rows, cols);
+  for (Eigen::Index i = 0; i < m.size(); ++i) m.data()[i] = d(rng);
+  return m;
+}
+
+/// A bar mesh with nodes moved a little, so that coordinates use all 53 bits.
+template <FiniteElement E>
+Mesh<E> perturbed_bar(int nx, int ny, int nz) {
+  const Mesh<E> bar = bar_mesh<E>(nx, ny, nz);
+  std::mt19937 rng(7);
+  Eigen::Matrix3Xd X = bar.nodes() + random_matrix(3, bar.num_nodes(), rng, 1e-3);
+  return Mesh<E>(std::move(X), bar.elements());
+}
+
+io::VtuOptions with_encoding(io::Encoding e) {
+  io::VtuOptions o;
+  o.encoding = e;
+  return o;
+}
+
+const io::Encoding all_encodings[] = {io::Encoding::ascii, io::Encoding::appended_raw, io::Encoding::appended_base64};
+const char* encoding_name(io::Encoding e) {
+  return e == io::Encoding::ascii ? "ascii" : e == io::Encoding::appended_raw ? "raw" : "base64";
+}
+
+}  // namespace
+
+// ================================================================================ .vtu ========
+
+TEMPLATE_TEST_CASE("vtu round trip is bit-exact in every encoding", "[io][vtu]", Tet4, Tet10, Hex8) {
+  using E = TestType;
+  const Mesh<E> mesh = perturbed_bar<E>(3, 2, 1);
+  std::mt19937 rng(42);
+  Eigen::Matrix3Xd displacement = random_matrix(3, mesh.num_nodes(), rng);
+  Eigen::Matrix3Xd velocity = random_matrix(3, mesh.num_nodes(), rng, 1e5);
+  Eigen::VectorXd temperature = random_matrix(mesh.num_nodes(), 1, rng, 300);
+  Eigen::VectorXd damage = random_matrix(mesh.num_elements(), 1, rng);
+  Eigen::Matrix3Xd fibre = random_matrix(3, mesh.num_elements(), rng);
+  // Values whose text form is easy to get wrong.
+  displacement(0, 0) = -0.0;
+  displacement(1, 0) = std::numeric_limits<double>::denorm_min();
+  displacement(2, 0) = 1e300;
+  temperature[0] = -std::numeric_limits<double>::max();
+  temperature[1] = 1.0 / 3.0;
+  damage[0] = std::numeric_limits<double>::min();
+
+  for (io::Encoding enc : all_encodings) {
+    INFO("encoding " << encoding_name(enc));
+    const std::string path = out_path(fmt::format("roundtrip_{}_{}.vtu", E::name, encoding_name(enc)));
+    io::write_vtu(path, mesh, {{"displacement", displacement}, {"velocity", velocity}, {"temperature", temperature}},
+                  {{"damage", damage}, {"fibre", fibre}}, with_encoding(enc));
+    const io::MeshData<E> d = io::read_vtu<E>(path);
+    REQUIRE(d.mesh.num_nodes() == mesh.num_nodes());
+    REQUIRE(d.mesh.num_elements() == mesh.num_elements());
+    CHECK(bit_equal(d.mesh.nodes(), mesh.nodes()));
+    CHECK(d.mesh.elements() == mesh.elements());
+    REQUIRE(d.point_data.size() == 3);
+    REQUIRE(d.cell_data.size() == 2);
+    CHECK(bit_equal(d.point_data.at("displacement"), displacement));
+    CHECK(bit_equal(d.point_data.at("velocity"), velocity));
+    CHECK(bit_equal(d.point_data.at("temperature"), temperature.transpose()));
+    CHECK(bit_equal(d.cell_data.at("damage"), damage.transpose()));
+    CHECK(bit_equal(d.cell_data.at("fibre"), fibre));
+    CHECK(std::signbit(d.point_data.at("displacement")(0, 0)));
+
+    // What was read writes back to the same bytes.
+    const std::string again = out_path(fmt::format("roundtrip_{}_{}_again.vtu", E::name, encoding_name(enc)));
+    io::write_vtu(again, d.mesh, io::to_fields(d.point_data), io::to_fields(d.cell_data), with_encoding(enc));
+    const io::MeshData<E> d2 = io::read_vtu<E>(again);
+    CHECK(bit_equal(d2.mesh.nodes(), mesh.nodes()));
+    CHECK(bit_equal(d2.point_data.at("velocity"), velocity));
+  }
+}
+
+TEST_CASE("vtu without fields and with an empty field list", "[io][vtu]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 1, 1);
+  for (io::Encoding enc : all_encodings) {
+    const std::string path = out_path(fmt::format("plain_{}.vtu", encoding_name(enc)));
+    io::write_vtu(path, mesh, {}, {}, with_encoding(enc));
+    const auto d = io::read_vtu<Hex8>(path);
+    CHECK(d.mesh.elements() == mesh.elements());
+    CHECK(d.point_data.empty());
+    CHECK(d.cell_data.empty());
+  }
+}
+
+TEST_CASE("vtu deformed positions: points = nodes + displacement", "[io][vtu]") {
+  const Mesh<Tet10> mesh = bar_mesh<Tet10>(2, 1, 1);
+  std::mt19937 rng(3);
+  const Eigen::Matrix3Xd u = random_matrix(3, mesh.num_nodes(), rng, 0.01);
+  for (io::Encoding enc : all_encodings) {
+    io::VtuOptions o = with_encoding(enc);
+    o.deform_by = "displacement";
+    const std::string path = out_path(fmt::format("deformed_{}.vtu", encoding_name(enc)));
+    io::write_vtu(path, mesh, {{"displacement", u}}, {}, o);
+    const auto d = io::read_vtu<Tet10>(path);
+    const Eigen::Matrix3Xd expected = mesh.nodes() + u;
+    CHECK(bit_equal(d.mesh.nodes(), expected));
+    CHECK(bit_equal(d.point_data.at("displacement"), u));
+  }
+  io::VtuOptions o;
+  o.deform_by = "u";
+  CHECK_THROWS_AS(io::write_vtu(out_path("deformed_bad.vtu"), mesh, {{"displacement", u}}, {}, o), InvalidArgument);
+  o.deform_by = "t";
+  const Eigen::VectorXd t = Eigen::VectorXd::Zero(mesh.num_nodes());
+  CHECK_THROWS_AS(io::write_vtu(out_path("deformed_bad.vtu"), mesh, {{"t", t}}, {}, o), InvalidArgument);
+}
+
+TEST_CASE("vtu file layout follows the VTK XML format", "[io][vtu]") {
+  const Mesh<Tet4> mesh = bar_mesh<Tet4>(1, 1, 1);
+  const Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(mesh.num_nodes(), 0, 7);
+
+  io::write_vtu(out_path("layout_raw.vtu"), mesh, {{"t", t}}, {}, with_encoding(io::Encoding::appended_raw));
+  const std::string raw = read_text(out_path("layout_raw.vtu"));
+  CHECK(contains(raw, "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">"));
+  CHECK(contains(raw, "<AppendedData encoding=\"raw\">"));
+  CHECK(contains(raw, "<DataArray type=\"Float64\" Name=\"t\" NumberOfComponents=\"1\" format=\"appended\" offset=\"0\"/>"));
+  // First array: UInt64 byte count (8 doubles = 64 bytes), then the values.
+  const size_t start = raw.find('_', raw.find("<AppendedData")) + 1;
+  std::uint64_t n = 0;
+  std::memcpy(&n, raw.data() + start, 8);
+  CHECK(n == 64);
+  double v = 0;
+  std::memcpy(&v, raw.data() + start + 8 + 7 * 8, 8);
+  CHECK(v == 7.0);
+
+  io::write_vtu(out_path("layout_b64.vtu"), mesh, {{"t", t}}, {}, with_encoding(io::Encoding::appended_base64));
+  const std::string b64 = read_text(out_path("layout_b64.vtu"));
+  CHECK(contains(b64, "<AppendedData encoding=\"base64\">"));
+  CHECK(std::all_of(b64.begin(), b64.end(), [](char c) { return c == '\n' || (c >= 32 && c < 127); }));
+  // One base64 stream of (count + data): 72 bytes -> 96 characters, so the next array's offset is 96.
+  CHECK(contains(b64, "offset=\"96\""));
+  const size_t s64 = b64.find('_', b64.find("<AppendedData")) + 1;
+  CHECK(b64.substr(s64, 12) == "QAAAAAAAAAAA");  // base64 of 64 as UInt64 little endian + first data byte 0
+
+  io::write_vtu(out_path("layout_ascii.vtu"), mesh, {{"t", t}}, {}, with_encoding(io::Encoding::ascii));
+  const std::string ascii = read_text(out_path("layout_ascii.vtu"));
+  CHECK(contains(ascii, "format=\"ascii\""));
+  CHECK(!contains(ascii, "AppendedData"));
+}
+
+TEST_CASE("vtu reader takes files written by VTK 9.1", "[io][vtu]") {
+  // tests/data/vtk9_*: bar_mesh<Tet4>(1,1,1) with u_i = (0.1 i, 0.2 i, -0.3 i), t_i = 0.5 i, c_e = 0.25 e,
+  // re-encoded by vtkXMLUnstructuredGridWriter (UInt32 headers, inline base64, ascii with <InformationKey>,
+  // Float32 points with Int32 connectivity and offsets in appended base64).
+  const Mesh<Tet4> bar = bar_mesh<Tet4>(1, 1, 1);
+  for (const char* file : {"vtk9_tet4_appended_raw_u32.vtu", "vtk9_tet4_inline_binary.vtu", "vtk9_tet4_ascii.vtu",
+                           "vtk9_tet4_float32_int32.vtu"}) {
+    INFO(file);
+    const auto d = io::read_vtu<Tet4>(data_path(file));
+    CHECK(d.mesh.nodes() == bar.nodes());
+    CHECK(d.mesh.elements() == bar.elements());
+    for (Index i = 0; i < bar.num_nodes(); ++i) {
+      CHECK(d.point_data.at("u").col(i) == Eigen::Vector3d(0.1 * i, 0.2 * i, -0.3 * i));
+      CHECK(d.point_data.at("t")(0, i) == 0.5 * i);
+    }
+    for (Index e = 0; e < bar.num_elements(); ++e) CHECK(d.cell_data.at("c")(0, e) == 0.25 * e);
+  }
+}
+
+TEST_CASE("vtu reader errors name the file and the line or cell", "[io][vtu]") {
+  SECTION("cells of another type") {
+    io::write_vtu(out_path("hex.vtu"), bar_mesh<Hex8>(1, 1, 1));
+    const std::string msg = io_error([] { io::read_vtu<Tet4>(out_path("hex.vtu")); });
+    CHECK(contains(msg, "io_hex.vtu: cell 0 has VTK type 12, expected 10 (Tet4)"));
+    CHECK(contains(msg, "read it as Mesh<Hex8>"));
+  }
+  // A hand-made file: one tetrahedron and, as cell 1, a triangle (VTK type 5).
+  const std::string head = R"(<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="4" NumberOfCells="1">
+      <Points>
+        <DataArray type="Float64" NumberOfComponents="3" format="ascii">
+)";
+  const std::string points = "0 0 0 1 0 0 0 1 0 0 0 1\n";
+  const std::string tail = R"(        </DataArray>
+      </Points>
+      <Cells>
+        <DataArray type="Int32" Name="connectivity" format="ascii">0 1 2 3</DataArray>
+        <DataArray type="Int32" Name="offsets" format="ascii">4</DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii">10</DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+)";
+  SECTION("the hand-made file is fine") {
+    const auto d = io::read_vtu<Tet4>(write_text("ok.vtu", head + points + tail));
+    CHECK(d.mesh.num_elements() == 1);
+  }
+  SECTION("cell index of a mismatched type") {
+    std::string text = head + points + tail;
+    text.replace(text.find("NumberOfCells=\"1\""), 17, "NumberOfCells=\"2\"");
+    text.replace(text.find(">0 1 2 3<"), 9, ">0 1 2 3 0 1 2<");
+    text.replace(text.find(">4<"), 3, ">4 7<");
+    text.replace(text.find(">10<"), 4, ">10 5<");
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("mixed.vtu", text)); });
+    CHECK(contains(msg, "io_mixed.vtu: cell 1 has VTK type 5, expected 10 (Tet4)"));
+  }
+  SECTION("non-numeric value: line of the token") {
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("nan.vtu", head + "0 0 0 1 0 0\n0 x 0 0 0 1\n" + tail)); });
+    CHECK(contains(msg, "io_nan.vtu:8: expected a number"));
+    CHECK(contains(msg, "'x'"));
+  }
+  SECTION("too few values") {
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("few.vtu", head + "0 0 0 1 0 0 0 1 0 0 0\n" + tail)); });
+    CHECK(contains(msg, "io_few.vtu:8: DataArray '(unnamed)' has 11 values, expected 12"));
+  }
+  SECTION("mismatched end tag") {
+    std::string text = head + points + tail;
+    text.replace(text.find("</Points>"), 9, "</Pionts>");
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("tag.vtu", text)); });
+    CHECK(contains(msg, "io_tag.vtu:9: expected </Points> (opened on line 5), got </Pionts>"));
+  }
+  SECTION("unterminated attribute value") {
+    std::string text = head + points + tail;
+    text.replace(text.find("\"Int32\" Name=\"offsets\""), 22, "\"Int32\" Name=\"offsets");
+    text.resize(text.find("offsets") + 7);
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("quote.vtu", text)); });
+    CHECK(contains(msg, "io_quote.vtu:12: expected the closing quote of attribute Name"));
+  }
+  SECTION("file ends inside the document") {
+    std::string text = head + points + tail;
+    text.resize(text.find("</UnstructuredGrid>"));
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("short.vtu", text)); });
+    CHECK(contains(msg, "io_short.vtu:16: expected </UnstructuredGrid> before end of file"));
+  }
+  SECTION("not an unstructured grid") {
+    std::string text = head + points + tail;
+    text.replace(text.find("type=\"UnstructuredGrid\""), 23, "type=\"PolyData\"");
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("poly.vtu", text)); });
+    CHECK(contains(msg, "io_poly.vtu:2: expected <VTKFile type=\"UnstructuredGrid\">"));
+  }
+  SECTION("compressed data") {
+    std::string text = head + points + tail;
+    text.replace(text.find("byte_order"), 10, "compressor=\"vtkZLibDataCompressor\" byte_order");
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("zlib.vtu", text)); });
+    CHECK(contains(msg, "io_zlib.vtu:2: compressed data"));
+  }
+  SECTION("missing cell array") {
+    std::string text = head + points + tail;
+    text.replace(text.find("Name=\"offsets\""), 14, "Name=\"offs\"");
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("noofs.vtu", text)); });
+    CHECK(contains(msg, "io_noofs.vtu:10: expected <DataArray Name=\"offsets\"> in <Cells>"));
+  }
+  SECTION("connectivity out of range") {
+    std::string text = head + points + tail;
+    text.replace(text.find(">0 1 2 3<"), 9, ">0 1 2 4<");
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("range.vtu", text)); });
+    CHECK(contains(msg, "io_range.vtu:11: cell 0 refers to point 4, outside [0, 4)"));
+  }
+  SECTION("truncated appended data") {
+    io::write_vtu(out_path("trunc.vtu"), bar_mesh<Tet4>(2, 1, 1));
+    std::string text = read_text(out_path("trunc.vtu"));
+    text.resize(text.size() * 3 / 4);
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("trunc.vtu", text)); });
+    CHECK(contains(msg, "io_trunc.vtu:"));
+    CHECK(contains(msg, "truncated"));
+  }
+  SECTION("missing file, unwritable path") {
+    CHECK(contains(io_error([] { io::read_vtu<Tet4>(out_path("does_not_exist.vtu")); }), "io_does_not_exist.vtu"));
+    const std::string bad = out_path("no_such_dir/x.vtu");
+    CHECK(contains(io_error([&] { io::write_vtu(bad, bar_mesh<Tet4>(1, 1, 1)); }), "no_such_dir/x.vtu"));
+  }
+  SECTION("fields of the wrong size") {
+    const Mesh<Tet4> mesh = bar_mesh<Tet4>(1, 1, 1);
+    const Eigen::VectorXd wrong = Eigen::VectorXd::Zero(mesh.num_nodes() + 1);
+    CHECK_THROWS_AS(io::write_vtu(out_path("x.vtu"), mesh, {{"t", wrong}}), InvalidArgument);
+    CHECK_THROWS_AS(io::write_vtu(out_path("x.vtu"), mesh, {}, {{"t", wrong}}), InvalidArgument);
+    const Eigen::VectorXd t = Eigen::VectorXd::Zero(mesh.num_nodes());
+    CHECK_THROWS_AS(io::write_vtu(out_path("x.vtu"), mesh, {{"t", t}, {"t", t}}), InvalidArgument);
+  }
+}
+
+TEST_CASE("vtu reader survives truncated and corrupted files", "[io][vtu]") {
+  // Every prefix of a valid file, and files with bytes overwritten, must fail with a plastifem
+  // error (IoError, or MeshError for a garbled but readable geometry) -- never crash.
+  const Mesh<Tet4> mesh = bar_mesh<Tet4>(2, 1, 1);
+  const Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(mesh.num_nodes(), 0, 1);
+  std::mt19937 rng(11);
+  for (io::Encoding enc : all_encodings) {
+    INFO("encoding " << encoding_name(enc));
+    const std::string path = out_path(fmt::format("fuzz_{}.vtu", encoding_name(enc)));
+    io::write_vtu(path, mesh, {{"t", t}}, {}, with_encoding(enc));
+    const std::string good = read_text(path);
+    const std::string bad_path = out_path("fuzz_bad.vtu");
+    // Appended data is located by offsets and sizes; a file cut after it (in the closing tags)
+    // still holds everything and may be read.
+    const size_t end = enc == io::Encoding::ascii ? good.size() - 1 : good.rfind("\n  </AppendedData>");
+    for (size_t len = 0; len < end; len += 1 + good.size() / 300) {
+      std::ofstream(bad_path, std::ios::binary) << good.substr(0, len);
+      CHECK_THROWS_AS(io::read_vtu<Tet4>(bad_path), Error);
+    }
+    int failures = 0;
+    for (int trial = 0; trial < 300; ++trial) {
+      std::string text = good;
+      for (int k = 0; k < 3; ++k) text[rng() % text.size()] = static_cast<char>(rng() % 256);
+      std::ofstream(bad_path, std::ios::binary) << text;
+      try {
+        io::read_vtu<Tet4>(bad_path);
+      } catch (const Error&) {
+        ++failures;
+      }
+    }
+    CHECK(failures > 0);
+  }
+}
+
+// ================================================================================ .pvd ========
+
+TEST_CASE("pvd series: frames and a collection that is valid after every frame", "[io][pvd]") {
+  const std::string dir = out_path("series");
+  std::filesystem::remove_all(dir);
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 1, 1);
+  io::PvdWriter pvd(dir, "bar");
+  const double times[] = {0.0, 0.5, 1.25};
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Matrix3Xd u = Eigen::Matrix3Xd::Constant(3, mesh.num_nodes(), 0.01 * k);
+    const auto vtu = pvd.write(times[k], mesh, {{"displacement", u}});
+    CHECK(vtu == std::filesystem::path(dir) / fmt::format("bar_{:04d}.vtu", k));
+    CHECK(pvd.num_frames() == static_cast<size_t>(k + 1));
+    // The collection lists exactly the frames written so far, and is complete XML.
+    const std::string text = read_text(pvd.pvd_path().string());
+    size_t datasets = 0;
+    for (size_t p = text.find("<DataSet"); p != std::string::npos; p = text.find("<DataSet", p + 1)) ++datasets;
+    CHECK(datasets == static_cast<size_t>(k + 1));
+    CHECK(contains(text, "<VTKFile type=\"Collection\""));
+    CHECK(text.size() >= 11);
+    CHECK(text.substr(text.size() - 11) == "</VTKFile>\n");
+    CHECK(!std::filesystem::exists(pvd.pvd_path().string() + ".tmp"));
+    const auto d = io::read_vtu<Hex8>(vtu);
+    CHECK(d.point_data.at("displacement")(0, 0) == 0.01 * k);
+  }
+  const std::string text = read_text((std::filesystem::path(dir) / "bar.pvd").string());
+  CHECK(contains(text, "<DataSet timestep=\"0\" group=\"\" part=\"0\" file=\"bar_0000.vtu\"/>"));
+  CHECK(contains(text, "<DataSet timestep=\"0.5\" group=\"\" part=\"0\" file=\"bar_0001.vtu\"/>"));
+  CHECK(contains(text, "<DataSet timestep=\"1.25\" group=\"\" part=\"0\" file=\"bar_0002.vtu\"/>"));
+  CHECK_THROWS_AS(pvd.write(std::numeric_limits<double>::quiet_NaN(), mesh), InvalidArgument);
+  CHECK_THROWS_AS(io::PvdWriter(dir, "a/b"), InvalidArgument);
+  CHECK_THROWS_AS(io::PvdWriter(dir, ""), InvalidArgument);
+}
+
+// ================================================================================ Gmsh ========
+
+namespace {
+/// Face sets compared as sets of (element, face).
+bool same_faces(std::vector<FaceRef> a, std::vector<FaceRef> b) {
+  auto less = [](FaceRef x, FaceRef y) { return std::tie(x.element, x.face) < std::tie(y.element, y.face); };
+  std::sort(a.begin(), a.end(), less);
+  std::sort(b.begin(), b.end(), less);
+  return a == b;
+}
+auto at_x0 = [](const Vec3& p) { return std::abs(p.x()) < 1e-12; };
+}  // namespace
+
+TEST_CASE("gmsh 2.2: unit cube as one hex, physical groups, an unused node", "[io][gmsh]") {
+  const Mesh<Hex8> mesh = io::read_gmsh<Hex8>(data_path("cube_hex8_v22.msh"));
+  const Mesh<Hex8> bar = bar_mesh<Hex8>(1, 1, 1);
+  REQUIRE(mesh.num_nodes() == 9);
+  REQUIRE(mesh.num_elements() == 1);
+  CHECK(mesh.element_nodes(0) == bar.element_nodes(0));
+  CHECK(mesh.node(8) == Vec3(2, 2, 2));
+  CHECK(mesh.report().unused_nodes == std::vector<Index>{8});  // kept, reported
+  CHECK(mesh.node_set("body") == std::vector<Index>{0, 1, 2, 3, 4, 5, 6, 7});
+  CHECK(mesh.node_set("fixed") == std::vector<Index>{0, 3, 4, 7});
+  CHECK(mesh.node_set("physical_3") == std::vector<Index>{0});  // an unnamed point group
+  CHECK(mesh.node_sets().size() == 3);
+  CHECK(mesh.face_sets().size() == 1);
+  CHECK(mesh.face_set("fixed") == std::vector<FaceRef>{{0, 5}});
+  CHECK(same_faces(mesh.face_set("fixed"), select_boundary_faces(mesh, at_x0)));
+}
+
+TEST_CASE("gmsh 4.1: unit cube as 6 Kuhn tets, sparse node tags in entity blocks", "[io][gmsh]") {
+  const Mesh<Tet4> mesh = io::read_gmsh<Tet4>(data_path("cube_tet4_v41.msh"));
+  const Mesh<Tet4> bar = bar_mesh<Tet4>(1, 1, 1);
+  REQUIRE(mesh.num_nodes() == 8);
+  REQUIRE(mesh.num_elements() == 6);
+  // Nodes in file order: tags 101 103 105 107 (x = 0, a parametric block), then 2 4 6 8.
+  CHECK(mesh.node(0) == Vec3(0, 0, 0));
+  CHECK(mesh.node(3) == Vec3(0, 1, 1));
+  CHECK(mesh.node(4) == Vec3(1, 0, 0));
+  CHECK(mesh.node(7) == Vec3(1, 1, 1));
+  for (Index e = 0; e < 6; ++e) CHECK(mesh.element_nodes(e) == bar.element_nodes(e));
+  CHECK(mesh.report().unused_nodes.empty());
+  CHECK(mesh.node_set("body").size() == 8);
+  CHECK(mesh.node_set("fixed") == std::vector<Index>{0, 1, 2, 3});
+  CHECK(mesh.node_set("physical_7") == std::vector<Index>{0});
+  CHECK(mesh.node_sets().size() == 3);  // the triangle of surface 2 is in no group
+  REQUIRE(mesh.face_set("fixed").size() == 2);
+  CHECK(same_faces(mesh.face_set("fixed"), select_boundary_faces(mesh, at_x0)));
+}
+
+TEST_CASE("gmsh Tet10: mid-edge nodes 8 and 9 are swapped into VTK order", "[io][gmsh]") {
+  for (const char* file : {"tet10_v41.msh", "tet10_v22.msh", "gmsh48_cube_tet10_v41.msh"}) {
+    INFO(file);
+    const Mesh<Tet10> mesh = io::read_gmsh<Tet10>(data_path(file));
+    for (Index e = 0; e < mesh.num_elements(); ++e) {
+      const auto X = mesh.element_nodes(e);
+      for (int k = 0; k < 6; ++k)
+        CHECK((X.col(4 + k) - 0.5 * (X.col(Tet10::edges[k][0]) + X.col(Tet10::edges[k][1]))).norm() < 1e-14);
+    }
+    // Face sets: every node of a "fixed" face is in the "fixed" node set.
+    const auto& fixed = mesh.node_set("fixed");
+    for (Index i : nodes_of_faces(mesh, mesh.face_set("fixed")))
+      CHECK(std::binary_search(fixed.begin(), fixed.end(), i));
+  }
+  const Mesh<Tet10> one = io::read_gmsh<Tet10>(data_path("tet10_v41.msh"));
+  CHECK(one.node(one.element(0)[8]) == Vec3(1, 0, 2));    // edge (1,3)
+  CHECK(one.node(one.element(0)[9]) == Vec3(0, 1.5, 2));  // edge (2,3)
+  CHECK(one.face_set("fixed") == std::vector<FaceRef>{{0, 0}});
+  CHECK(one.node_set("fixed").size() == 6);
+
+  // A mesh made by Gmsh 4.8 (-order 2): its "fixed" surface is the side x = 0 of the unit cube.
+  const Mesh<Tet10> cube = io::read_gmsh<Tet10>(data_path("gmsh48_cube_tet10_v41.msh"));
+  CHECK(same_faces(cube.face_set("fixed"), select_boundary_faces(cube, at_x0)));
+  double volume = 0;
+  for (Index e = 0; e < cube.num_elements(); ++e) volume += element_volume<Tet10>(cube.element_nodes(e));
+  CHECK(volume == Approx(1.0).epsilon(1e-12));
+}
+
+TEST_CASE("gmsh: volume elements of another type are an error", "[io][gmsh]") {
+  const std::string msg = io_error([] { io::read_gmsh<Hex8>(data_path("cube_tet4_v41.msh")); });
+  CHECK(contains(msg, "cube_tet4_v41.msh:47: element 11 is a 4-node tetrahedron (Gmsh type 4)"));
+  CHECK(contains(io_error([] { io::read_gmsh<Tet4>(data_path("tet10_v22.msh")); }), "tet10_v22.msh:25: element 2 is a 10-node"));
+}
+
+TEST_CASE("gmsh reader errors name the file and line", "[io][gmsh]") {
+  const std::string nodes22 = "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n";
+  const std::string tet22 = "$Elements\n1\n1 4 2 1 1 1 2 3 4\n$EndElements\n";
+  const std::string fmt22 = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n";
+  auto msg = [](const std::string& name, const std::string& text) {
+    return io_error([&] { io::read_gmsh<Tet4>(write_text(name, text)); });
+  };
+  SECTION("a valid small file") {
+    const Mesh<Tet4> m = io::read_gmsh<Tet4>(write_text("ok.msh", fmt22 + nodes22 + tet22));
+    CHECK(m.num_elements() == 1);
+  }
+  SECTION("missing $EndNodes") {
+    CHECK(contains(msg("endnodes.msh", fmt22 + "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"),
+                   "io_endnodes.msh:9: expected $EndNodes, got end of file"));
+    CHECK(contains(msg("endnodes2.msh", fmt22 + "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n" + tet22),
+                   "io_endnodes2.msh:10: expected $EndNodes, got '$Elements'"));
+  }
+  SECTION("wrong counts") {
+    CHECK(contains(msg("count.msh", fmt22 + "$Nodes\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n" + tet22),
+                   "io_count.msh:10: expected node 5 of 5 'tag x y z', got '$EndNodes'"));
+    CHECK(contains(msg("count2.msh", fmt22 + "$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n" + tet22),
+                   "io_count2.msh:9: expected $EndNodes, got '4 0 0 1' (more entries than the section header announces?)"));
+    CHECK(contains(msg("nodecount.msh", fmt22 + nodes22 + "$Elements\n1\n1 4 2 1 1 1 2 3\n$EndElements\n"),
+                   "io_nodecount.msh:13: element 1: a 4-node tetrahedron (type 4) has 2 tags and 4 nodes"));
+  }
+  SECTION("non-numeric token") {
+    CHECK(contains(msg("nonnum.msh", fmt22 + "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1.0x 0\n4 0 0 1\n$EndNodes\n" + tet22),
+                   "io_nonnum.msh:8: expected a coordinate, got '1.0x'"));
+  }
+  SECTION("unknown version, binary format, not a .msh") {
+    CHECK(contains(msg("version.msh", "$MeshFormat\n3.0 0 8\n$EndMeshFormat\n"), "io_version.msh:2: unsupported MSH version '3.0'"));
+    const std::string bin = msg("binary.msh", "$MeshFormat\n4.1 1 8\n\x01\x00\x00\x00\n$EndMeshFormat\n");
+    CHECK(contains(bin, "io_binary.msh:2: binary MSH files are not supported"));
+    CHECK(contains(bin, "ASCII"));
+    CHECK(contains(msg("nofmt.msh", "\n$Nodes\n"), "io_nofmt.msh:2: expected $MeshFormat"));
+    CHECK(contains(msg("empty.msh", ""), "io_empty.msh:1: expected $MeshFormat, got an empty file"));
+  }
+  SECTION("element referencing an unknown node tag") {
+    CHECK(contains(msg("tag.msh", fmt22 + nodes22 + "$Elements\n1\n1 4 2 1 1 1 2 3 44\n$EndElements\n"),
+                   "io_tag.msh:13: element 1 refers to node 44, which is not in $Nodes"));
+  }
+  SECTION("surface element that matches no boundary face") {
+    // Node 5 belongs to no tetrahedron, so triangle (1, 2, 5) is no face of the mesh.
+    const std::string text = fmt22 + "$PhysicalNames\n1\n2 5 \"fixed top\"\n$EndPhysicalNames\n" +
+                             "$Nodes\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n$EndNodes\n" +
+                             "$Elements\n2\n1 4 2 1 1 1 2 3 4\n2 2 2 5 1 1 2 5\n$EndElements\n";
+    CHECK(contains(msg("noface.msh", text),
+                   "io_noface.msh:19: surface element 2 of physical group 'fixed top' matches no boundary face"));
+    const std::string quad = fmt22 + "$PhysicalNames\n1\n2 5 \"fixed\"\n$EndPhysicalNames\n" + nodes22 +
+                             "$Elements\n2\n1 4 2 1 1 1 2 3 4\n2 3 2 5 1 1 2 3 4\n$EndElements\n";
+    CHECK(contains(msg("quad.msh", quad), "io_quad.msh:18: surface element 2 of physical group 'fixed' matches no "
+                                          "boundary face of the Tet4 mesh (it has 4 corners, a Tet4 face has 3)"));
+  }
+  SECTION("4.1 structure") {
+    const std::string fmt41 = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n";
+    const std::string nodes41 = "$Nodes\n1 4 1 4\n3 1 0 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n$EndNodes\n";
+    CHECK(contains(msg("blocks.msh", fmt41 + "$Nodes\n1 5 1 4\n3 1 0 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n$EndNodes\n"),
+                   "io_blocks.msh:5: the $Nodes header announces 5 nodes, its blocks hold 4"));
+    CHECK(contains(msg("param.msh", fmt41 + "$Nodes\n1 4 1 4\n3 1 1 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n$EndNodes\n"),
+                   "io_param.msh:11: expected 'x y z' and the parametric coordinates (6 numbers), got 3"));
+    const std::string entities = "$Entities\n0 0 0 1\n1 0 0 0 1 1 1 0 0\n$EndEntities\n";
+    CHECK(contains(msg("entity.msh", fmt41 + entities + nodes41 + "$Elements\n1 1 1 1\n3 2 4 1\n1 1 2 3 4\n$EndElements\n"),
+                   "io_entity.msh:22: element block of entity (dim 3, tag 2), which $Entities does not list"));
+    const Mesh<Tet4> m =
+        io::read_gmsh<Tet4>(write_text("ok41.msh", fmt41 + entities + nodes41 + "$Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n"));
+    CHECK(m.num_elements() == 1);
+  }
+  SECTION("no element of the mesh's type") {
+    CHECK(contains(msg("none.msh", fmt22 + nodes22 + "$Elements\n1\n1 2 2 1 1 1 2 3\n$EndElements\n"),
+                   "io_none.msh:11: no Tet4 elements (Gmsh type 4) in $Elements"));
+  }
+  SECTION("missing file") {
+    CHECK(contains(io_error([] { io::read_gmsh<Tet4>(out_path("missing.msh")); }), "io_missing.msh"));
+  }
+  SECTION("an inverted element is the mesh's MeshError, unprefixed") {
+    const std::string inverted = fmt22 + nodes22 + "$Elements\n1\n1 4 2 1 1 2 1 3 4\n$EndElements\n";
+    const std::string path = write_text("inverted.msh", inverted);
+    CHECK_THROWS_AS(io::read_gmsh<Tet4>(path), MeshError);
+    try {
+      io::read_gmsh<Tet4>(path);
+    } catch (const MeshError& e) {
+      CHECK(std::string(e.what()).rfind("element 0 is inverted", 0) == 0);
+    }
+  }
+}
+
+// ========================================================================== legacy .vtk ========
+
+TEST_CASE("legacy vtk: classic CELLS layout with point and cell data", "[io][vtk]") {
+  const auto d = io::read_vtk_legacy<Tet4>(data_path("cube_tet4_classic.vtk"));
+  const Mesh<Tet4> bar = bar_mesh<Tet4>(1, 1, 1);
+  CHECK(d.mesh.nodes() == bar.nodes());
+  CHECK(d.mesh.elements() == bar.elements());
+  REQUIRE(d.point_data.size() == 2);
+  REQUIRE(d.cell_data.size() == 2);
+  CHECK(d.point_data.at("temperature") == Eigen::RowVectorXd::LinSpaced(8, 0, 3.5));
+  CHECK(d.point_data.at("displacement").rows() == 3);
+  CHECK(d.point_data.at("displacement").col(7) == Eigen::Vector3d(0.7, 1.4, -2.1));
+  CHECK(d.cell_data.at("damage") == Eigen::RowVectorXd::LinSpaced(6, 0, 1.25));
+  CHECK(d.cell_data.at("stress").rows() == 6);
+  CHECK(d.cell_data.at("stress").col(5) == (Eigen::VectorXd(6) << 1, 2, 3, 4, 5, 6).finished());
+}
+
+TEST_CASE("legacy vtk: version 5.1 OFFSETS/CONNECTIVITY layout", "[io][vtk]") {
+  const auto d = io::read_vtk_legacy<Hex8>(data_path("bar_hex8_v51.vtk"));
+  const Mesh<Hex8> bar = bar_mesh<Hex8>(2, 1, 1);
+  CHECK(d.mesh.nodes() == bar.nodes());
+  CHECK(d.mesh.elements() == bar.elements());
+  CHECK(d.cell_data.at("id") == Eigen::RowVector2d(7, 8));
+}
+
+TEST_CASE("legacy vtk: files written by VTK 9.1 (4.2 and 5.1, with METADATA)", "[io][vtk]") {
+  const Mesh<Tet4> bar = bar_mesh<Tet4>(1, 1, 1);
+  for (const char* file : {"vtk9_tet4_v42.vtk", "vtk9_tet4_v51.vtk"}) {
+    INFO(file);
+    const auto d = io::read_vtk_legacy<Tet4>(data_path(file));
+    CHECK(d.mesh.nodes() == bar.nodes());
+    CHECK(d.mesh.elements() == bar.elements());
+    for (Index i = 0; i < 8; ++i) {  // VTK prints 11 significant digits here
+      CHECK(d.point_data.at("u")(1, i) == Approx(0.2 * i).margin(1e-12));
+      CHECK(d.point_data.at("t")(0, i) == 0.5 * i);
+    }
+    CHECK(d.cell_data.at("c")(0, 5) == 1.25);
+  }
+}
+
+TEST_CASE("legacy vtk reader errors name the file and line or cell", "[io][vtk]") {
+  const std::string head = "# vtk DataFile Version 3.0\ntitle\nASCII\nDATASET UNSTRUCTURED_GRID\n";
+  const std::string points = "POINTS 4 double\n0 0 0 1 0 0\n0 1 0 0 0 1\n";
+  const std::string cells = "CELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n";
+  auto msg = [](const std::string& name, const std::string& text) {
+    return io_error([&] { io::read_vtk_legacy<Tet4>(write_text(name, text)); });
+  };
+  SECTION("a valid small file") {
+    CHECK(io::read_vtk_legacy<Tet4>(write_text("ok.vtk", head + points + cells)).mesh.num_elements() == 1);
+  }
+  SECTION("binary") {
+    CHECK(contains(msg("bin.vtk", "# vtk DataFile Version 3.0\ntitle\nBINARY\nDATASET UNSTRUCTURED_GRID\n"),
+                   "io_bin.vtk:3: BINARY legacy .vtk files are not supported"));
+  }
+  SECTION("cell type") {
+    CHECK(contains(msg("type.vtk", head + points + "CELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n12\n"),
+                   "io_type.vtk: cell 0 has VTK type 12, expected 10 (Tet4)"));
+  }
+  SECTION("non-numeric and missing values") {
+    CHECK(contains(msg("nonnum.vtk", head + "POINTS 4 double\n0 0 0 1 0 0\n0 one 0 0 0 1\n" + cells),
+                   "io_nonnum.vtk:7: expected a number (value 8 of 12 for POINTS), got 'one'"));
+    CHECK(contains(msg("short.vtk", head + "POINTS 4 double\n0 0 0 1 0 0\n0 1 0\n"),
+                   "io_short.vtk:7: expected 12 values for POINTS, got end of file after 9"));
+    CHECK(contains(msg("nocells.vtk", head + points), "io_nocells.vtk:7: expected CELLS, got end of file"));
+  }
+  SECTION("inconsistent cells") {
+    CHECK(contains(msg("size.vtk", head + points + "CELLS 1 6\n4 0 1 2 3\nCELL_TYPES 1\n10\n"),
+                   "io_size.vtk:8: CELLS announces a list of 6 numbers, its 1 cells hold 5"));
+    CHECK(contains(msg("nodes.vtk", head + points + "CELLS 1 4\n3 0 1 2\nCELL_TYPES 1\n10\n"),
+                   "io_nodes.vtk:9: cell 0 has 3 nodes, expected 4 for a Tet4"));
+    CHECK(contains(msg("range.vtk", head + points + "CELLS 1 5\n4 0 1 2 9\nCELL_TYPES 1\n10\n"),
+                   "io_range.vtk:9: cell 0 refers to point 9, outside [0, 4)"));
+    CHECK(contains(msg("ntypes.vtk", head + points + "CELLS 1 5\n4 0 1 2 3\nCELL_TYPES 2\n10 10\n"),
+                   "io_ntypes.vtk:10: CELL_TYPES lists 2 cells, CELLS 1"));
+  }
+  SECTION("data sections") {
+    CHECK(contains(msg("pd.vtk", head + points + cells + "POINT_DATA 3\n"), "io_pd.vtk:12: POINT_DATA 3 does not match the 4 points"));
+    CHECK(contains(msg("kw.vtk", head + points + cells + "POINT_DATA 4\nSCALARZ t double\n"),
+                   "io_kw.vtk:13: expected a keyword such as POINTS"));
+  }
+  SECTION("header") {
+    CHECK(contains(msg("head.vtk", "# not vtk\n"), "io_head.vtk:1: expected '# vtk DataFile Version x.x'"));
+    CHECK(contains(msg("poly.vtk", "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\n"),
+                   "io_poly.vtk:4: expected DATASET UNSTRUCTURED_GRID, got 'POLYDATA'"));
+  }
+}
+
+// ========================================================================= performance ========
+
+TEST_CASE("vtu writes a 50k-node mesh well under a second", "[io][.perf]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(36, 36, 36);  // 50653 nodes
+  const Eigen::Matrix3Xd u = Eigen::Matrix3Xd::Random(3, mesh.num_nodes());
+  const Eigen::VectorXd t = Eigen::VectorXd::Random(mesh.num_nodes());
+  for (io::Encoding enc : all_encodings) {
+    const std::string path = out_path(fmt::format("perf_{}.vtu", encoding_name(enc)));
+    const auto t0 = std::chrono::steady_clock::now();
+    io::write_vtu(path, mesh, {{"displacement", u}, {"velocity", u}, {"temperature", t}}, {}, with_encoding(enc));
+    const auto t1 = std::chrono::steady_clock::now();
+    const auto d = io::read_vtu<Hex8>(path);
+    const auto t2 = std::chrono::steady_clock::now();
+    const double w = std::chrono::duration<double>(t1 - t0).count(), r = std::chrono::duration<double>(t2 - t1).count();
+    WARN(fmt::format("{}: write {:.3f} s, read {:.3f} s, {} bytes", encoding_name(enc), w, r, std::filesystem::file_size(path)));
+    CHECK(w < 1.0);
+    CHECK(d.mesh.num_nodes() == mesh.num_nodes());
+  }
+}
