@@ -20,6 +20,7 @@ concept ElasticModel =
       { M::template cauchy_stress<E>(data, x, m) } -> std::same_as<Mat3>;
     };
 
-static_assert(ElasticModel<Linear, Hex8> && ElasticModel<Corotational, Tet10>);
+static_assert(ElasticModel<Linear, Hex8> && ElasticModel<Corotational, Tet10> &&
+              ElasticModel<CorotationalPerElement, Hex8>);
 
 }  // namespace plastifem

@@ -49,8 +49,10 @@ class LinearSolver {
 
   /// Solves A x = b; x holds the initial guess on entry (CG warm start). A is symmetric with
   /// constrained rows and columns replaced by identity rows.
-  LinearSolveReport solve(const SparseMatrix& A, const Vector& b, Vector& x) {
-    return settings_.kind == LinearSolverKind::Direct ? solve_direct(A, b, x) : solve_cg(A, b, x);
+  /// `tolerance` > 0 overrides the CG tolerance for this solve (inexact Newton).
+  LinearSolveReport solve(const SparseMatrix& A, const Vector& b, Vector& x, Scalar tolerance = 0) {
+    return settings_.kind == LinearSolverKind::Direct ? solve_direct(A, b, x)
+                                                      : solve_cg(A, b, x, tolerance > 0 ? tolerance : settings_.tolerance);
   }
 
  private:
@@ -74,7 +76,7 @@ class LinearSolver {
     return r;
   }
 
-  LinearSolveReport solve_cg(const SparseMatrix& A, const Vector& b, Vector& x) {
+  LinearSolveReport solve_cg(const SparseMatrix& A, const Vector& b, Vector& x, Scalar tolerance) {
     const Index n = static_cast<Index>(b.size());
     if (r_.size() != n) {
       r_.resize(n), z_.resize(n), p_.resize(n), q_.resize(n), inv_diag_.resize(n);
@@ -97,7 +99,7 @@ class LinearSolver {
     z_ = inv_diag_.cwiseProduct(r_);
     p_ = z_;
     Scalar rz = r_.dot(z_);
-    const Scalar target = settings_.tolerance * bnorm;
+    const Scalar target = tolerance * bnorm;
     Scalar rnorm = r_.norm();
     int k = 0;
     while (rnorm > target && k < settings_.max_iterations) {

@@ -65,7 +65,9 @@ struct SolverSettings {
   LinearSolverSettings linear;  ///< dynamics (default: warm-started Jacobi CG, 1e-8)
   LinearSolverSettings static_linear{LinearSolverKind::Direct};
   Scalar rayleigh_mass = 0, rayleigh_stiffness = 0;  ///< D = alpha M + beta K
-  int threads = 0;                                   ///< element loops; 0: OpenMP default
+  /// Threads for element loops and products: 1 by default (predictable; on small scenes and
+  /// busy machines threads cost more than they give), 0: OpenMP default, N: N threads.
+  int threads = 1;
 };
 
 template <FiniteElement E, class Elastic, class Plastic = NoPlasticity, class Enrich = NoEnrichment>
@@ -260,7 +262,10 @@ class Solver {
   StepReport step(Scalar dt) {
     const auto t0 = std::chrono::steady_clock::now();
     if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
-    if (!initial_acceleration_known_) solve_initial_acceleration();
+    // a_n: the committed acceleration, or (first step, or after loads changed) the one from
+    // equilibrium, kept in scratch until the step succeeds.
+    if (!initial_acceleration_known_) solve_initial_acceleration(a_start_);
+    else a_start_ = a_;
     const auto& nm = settings_.newmark;
     const Scalar t1 = time_ + dt;
     const Scalar c0 = 1 / (nm.beta * dt * dt), c1 = nm.gamma / (nm.beta * dt);
@@ -279,38 +284,63 @@ class Solver {
     const int max_it = realtime ? 1 : settings_.newton.max_iterations;
     Scalar scale = 0;
     bool converged = false;
-    for (int it = 0; it < max_it; ++it) {
-      dynamic_residual(u_try_, dt, c0, true);  // fills r_, K_, a_try_, v_try_
-      const Scalar rnorm = free_norm(r_);
+    // Each iteration: solve A du = -r, then evaluate residual and tangent at u + du, which the
+    // next iteration needs anyway; only if |r| did not decrease, backtrack (force-only
+    // evaluations) along du.
+    dynamic_residual(u_try_, dt, c0, true);  // fills r_, K_ (and f_int_)
+    Scalar rnorm = free_norm(r_);
+    for (int it = 0;; ++it) {
+      if (!std::isfinite(rnorm)) fail<SolverError>("Newmark step at t = {}: the residual is not finite", t1);
       scale = std::max(scale, force_scale());
       rep.residual = rnorm;
       rep.relative_residual = rnorm / scale;
-      if (!std::isfinite(rnorm)) fail<SolverError>("step at t = {}: the residual is not finite", t1);
       if (!realtime && it > 0 && rnorm <= settings_.newton.residual_tolerance * scale) {
         converged = true;
         break;
       }
+      if (it == max_it) break;
       form_system(mass_coef, stiff_coef);
       rhs_ = -r_;
-      du_.setZero();
+      // CG warm start: the first increment of the previous step (the motion over one step
+      // changes slowly); later increments start from zero.
+      if (it == 0 && first_increment_.size() == num_dofs()) du_ = first_increment_;
+      else du_.setZero();
       apply_dirichlet(A_, rhs_);
-      const LinearSolveReport lr = linear_.solve(A_, rhs_, du_);
+      for (Index i = 0; i < num_dofs(); ++i)
+        if (constrained_[i]) du_[i] = 0;
+      // Inexact Newton (Eisenstat-Walker style): solve only as accurately as this iteration
+      // needs to reach the Newton tolerance, never looser than 0.1 nor tighter than the
+      // configured linear tolerance. Real-time mode uses the configured tolerance.
+      const Scalar target = settings_.newton.residual_tolerance * scale;
+      const Scalar cg_tol = realtime ? settings_.linear.tolerance
+                                     : std::max(settings_.linear.tolerance, std::min(0.1, 0.5 * target / rnorm));
+      const LinearSolveReport lr = linear_.solve(A_, rhs_, du_, cg_tol);
+      if (it == 0) next_first_increment_ = du_;  // committed with the step
       rep.linear_iterations += lr.iterations;
       ++rep.newton_iterations;
-      Scalar s = 1;
-      if (!realtime && settings_.newton.line_search) s = line_search(u_try_, du_, rnorm, dt, c0);
-      u_try_ += s * du_;
-      // A linear model is solved exactly by one Newton step when the linear solve converged.
+      // One linearised solve (real-time mode), or a linear model solved exactly by it.
       if (realtime || (Elastic::constant_tangent && lr.converged)) {
+        u_try_ += du_;
         converged = true;
         break;
       }
-      if (s * du_.norm() <= settings_.newton.increment_tolerance * (u_try_.norm() + mesh_size_)) {
-        dynamic_residual(u_try_, dt, c0, false);
-        rep.residual = free_norm(r_);
-        rep.relative_residual = rep.residual / scale;
-        converged = rep.residual <= std::sqrt(settings_.newton.residual_tolerance) * scale;
-        if (converged) break;
+      work2_ = u_try_ + du_;
+      dynamic_residual(work2_, dt, c0, true);
+      Scalar r_new = free_norm(r_), step = 1;
+      if (settings_.newton.line_search && !(std::isfinite(r_new) && r_new < (1 - 1e-4) * rnorm)) {
+        step = line_search(u_try_, du_, rnorm, dt, c0);
+        work2_ = u_try_ + step * du_;
+        dynamic_residual(work2_, dt, c0, true);
+        r_new = free_norm(r_);
+      }
+      u_try_.swap(work2_);
+      rnorm = r_new;
+      if (step * du_.norm() <= settings_.newton.increment_tolerance * (u_try_.norm() + mesh_size_) &&
+          rnorm <= std::sqrt(settings_.newton.residual_tolerance) * scale) {
+        rep.residual = rnorm;
+        rep.relative_residual = rnorm / scale;
+        converged = true;  // stagnated at round-off level: the increment no longer changes u
+        break;
       }
     }
     if (!converged)
@@ -318,14 +348,16 @@ class Solver {
                         "{:.3g}); the state is unchanged. Try a smaller dt or more iterations",
                         t1, rep.newton_iterations, rep.residual, rep.relative_residual);
     // Commit.
-    a_try_ = c0 * (u_try_ - u_) - c0 * dt * v_ - (1 / (2 * nm.beta) - 1) * a_;
-    v_try_ = v_ + dt * ((1 - nm.gamma) * a_ + nm.gamma * a_try_);
+    a_try_ = c0 * (u_try_ - u_) - c0 * dt * v_ - (1 / (2 * nm.beta) - 1) * a_start_;
+    v_try_ = v_ + dt * ((1 - nm.gamma) * a_start_ + nm.gamma * a_try_);
     if (!u_try_.allFinite() || !v_try_.allFinite())
       fail<SolverError>("Newmark step at t = {} produced non-finite values; the state is unchanged", t1);
     u_.swap(u_try_);
     v_.swap(v_try_);
     a_.swap(a_try_);
     time_ = t1;
+    initial_acceleration_known_ = true;
+    first_increment_ = next_first_increment_;
     rep.wall_ms = ms_since(t0);
     return rep;
   }
@@ -551,8 +583,8 @@ class Solver {
     } else {
       assemble(u, f_int_, tangent ? &K_ : nullptr);
     }
-    a_try_ = c0 * (u - u_) - c0 * dt * v_ - (1 / (2 * nm.beta) - 1) * a_;
-    v_try_ = v_ + dt * ((1 - nm.gamma) * a_ + nm.gamma * a_try_);
+    a_try_ = c0 * (u - u_) - c0 * dt * v_ - (1 / (2 * nm.beta) - 1) * a_start_;
+    v_try_ = v_ + dt * ((1 - nm.gamma) * a_start_ + nm.gamma * a_try_);
     symmetric_multiply(M_, a_try_, r_);
     r_ += f_int_ - f_ext_;
     if (settings_.rayleigh_mass != 0 || settings_.rayleigh_stiffness != 0) {
@@ -601,18 +633,18 @@ class Solver {
       if (constrained_[i]) b[i] = 0;
   }
 
-  /// Backtracking on |r|: halve the step while the residual does not decrease.
+  /// Backtracking on |r| along du (force-only evaluations): the first halved step that
+  /// decreases the residual; if none does (the warped corotational tangent is not the exact
+  /// Jacobian, so du need not descend), the full step, and the iteration cap decides.
   Scalar line_search(const Vector& u, const Vector& du, Scalar r0, Scalar dt, Scalar c0) {
-    Scalar s = 1;
-    Vector& trial = work2_;
-    for (int k = 0; k < 8; ++k) {
-      trial = u + s * du;
-      dynamic_residual(trial, dt, c0, false);
+    Scalar s = 0.5;
+    for (int k = 0; k < 7; ++k, s *= 0.5) {
+      work3_ = u + s * du;
+      dynamic_residual(work3_, dt, c0, false);
       const Scalar r = free_norm(r_);
       if (std::isfinite(r) && r < (1 - 1e-4 * s) * r0) return s;
-      s *= 0.5;
     }
-    return 1;  // no decrease found: take the Newton step and let the iteration cap decide
+    return 1;
   }
 
   StepReport newton_static(Vector& u) {
@@ -635,7 +667,14 @@ class Solver {
       const LinearSolveReport lr = static_linear_.solve(A_, rhs_, du_);
       rep.linear_iterations += lr.iterations;
       ++rep.newton_iterations;
-      // Backtracking on |r|.
+      if (Elastic::constant_tangent && lr.converged) {  // one exact solve is the answer
+        u += du_;
+        internal_force(u, f_int_);
+        r_ = f_int_ - f_ext_;
+        rep.residual = free_norm(r_);
+        rep.relative_residual = rep.residual / scale;
+        return rep;
+      }
       // Backtracking on |r|; if no step length decreases it (the corotational tangent is not
       // the exact Jacobian, so the direction need not descend), take the full Newton step.
       Scalar s = 1;
@@ -658,7 +697,7 @@ class Solver {
   }
 
   /// M a_0 = f_ext(t) - f_int(u) - D v at the current time; zero at constrained dofs.
-  void solve_initial_acceleration() {
+  void solve_initial_acceleration(Vector& a) {
     external_force(time_, f_ext_);
     internal_force(u_, f_int_);
     rhs_ = f_ext_ - f_int_;
@@ -674,10 +713,8 @@ class Solver {
     A_ = M_;
     apply_dirichlet(A_, rhs_);
     LinearSolver direct({LinearSolverKind::Direct});
-    Vector a = Vector::Zero(num_dofs());
+    a = Vector::Zero(num_dofs());
     direct.solve(A_, rhs_, a);
-    a_ = a;
-    initial_acceleration_known_ = true;
   }
 
   Mesh<E> mesh_;  // a copy: the solver stays valid whatever happens to the caller's mesh
@@ -694,7 +731,7 @@ class Solver {
   Vector X_, u_, v_, a_;
   Vector f_int_, f_ext_, r_, du_, rhs_, u_try_, a_try_, v_try_, prescribed_;
   mutable Vector work_;
-  Vector work2_;
+  Vector work2_, work3_, first_increment_, next_first_increment_, a_start_;
   Scalar time_ = 0, mesh_size_ = 1;
   bool initial_acceleration_known_ = false;
 };

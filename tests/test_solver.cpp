@@ -1,0 +1,725 @@
+// Whole-solver checks against independent facts: the patch test on distorted meshes, a
+// cantilever against Timoshenko beam theory with measured convergence orders, exact energy
+// conservation of undamped average-acceleration Newmark, damped dynamics settling on the static
+// solution, balance of forces and moments, reactions against the weight, determinism across
+// thread counts, input validation, and the "failed step leaves the state alone" contract.
+#include "catch.hpp"
+
+#include <plastifem/plastifem.hpp>
+
+#include <fmt/core.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <set>
+#include <tuple>
+
+using namespace plastifem;
+
+namespace {
+
+template <class Err = Error>
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Err& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    return std::string("wrong exception type: ") + e.what();
+  }
+  return "(no error)";
+}
+
+bool contains(const std::string& s, const std::string& part) { return s.find(part) != std::string::npos; }
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Box meshes of every element type: Hex8 grid, Kuhn Tet4, or its Tet10.
+template <FiniteElement E>
+Mesh<E> box_mesh(const BoxSpec& b) {
+  if constexpr (std::is_same_v<E, Hex8>) return box_hex8(b);
+  else if constexpr (std::is_same_v<E, Tet4>) return box_tet4_kuhn(b);
+  else return promote_to_tet10(box_tet4_kuhn(b));
+}
+
+/// Moves every node strictly inside the box [0, n]^3 (unit cells) by a random vector of length
+/// up to 0.2. Kuhn tets have heights >= 1/sqrt(2) = 0.71 and two moved corners close a gap by
+/// at most 0.4, so no element inverts (the Mesh constructor would throw if one did).
+template <FiniteElement E>
+Mesh<E> perturb_interior(const Mesh<E>& m, int n, std::mt19937& rng) {
+  std::uniform_real_distribution<Scalar> u(-1.0, 1.0);
+  Eigen::Matrix3Xd X = m.nodes();
+  for (Index i = 0; i < X.cols(); ++i) {
+    const Vec3 p = X.col(i);
+    if ((p.array() > 1e-9).all() && (p.array() < n - 1e-9).all()) {
+      Vec3 d;
+      do d = Vec3(u(rng), u(rng), u(rng));
+      while (d.norm() > 1);
+      X.col(i) += 0.2 * d;
+    }
+  }
+  return Mesh<E>(X, m.elements());
+}
+
+/// A distorted n^3 box: Hex8 and Tet4 with moved interior nodes; Tet10 promoted from the
+/// distorted Tet4, so mid-edge nodes sit at the middle of straight edges.
+template <FiniteElement E>
+Mesh<E> distorted_box(int n, std::mt19937& rng) {
+  if constexpr (std::is_same_v<E, Tet10>) return promote_to_tet10(perturb_interior(box_tet4_kuhn({n, n, n}), n, rng));
+  else return perturb_interior(box_mesh<E>({n, n, n}), n, rng);
+}
+
+Eigen::Matrix3Xd as_nodes(const Vector& u) { return Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, u.size() / 3); }
+
+template <class S>
+bool state_finite(const S& s) {
+  return s.displacement().allFinite() && s.velocity().allFinite() && s.acceleration().allFinite();
+}
+
+/// Mean z-displacement of a node set.
+template <class S>
+Scalar mean_uz(const S& s, const std::vector<Index>& nodes) {
+  Scalar z = 0;
+  for (Index i : nodes) z += s.displacement(i).z();
+  return z / static_cast<Scalar>(nodes.size());
+}
+
+const Material soft{3000.0, 0.45, 1.0};  // SCENES.md bar material
+
+template <class E_, class M_>
+struct Combo {
+  using E = E_;
+  using M = M_;
+};
+using AllCombos = std::tuple<Combo<Tet4, Linear>, Combo<Tet4, Corotational>, Combo<Tet4, CorotationalPerElement>,
+                             Combo<Tet10, Linear>, Combo<Tet10, Corotational>, Combo<Tet10, CorotationalPerElement>,
+                             Combo<Hex8, Linear>, Combo<Hex8, Corotational>, Combo<Hex8, CorotationalPerElement>>;
+
+}  // namespace
+
+// ---- patch test ------------------------------------------------------------------------------
+
+TEMPLATE_TEST_CASE("patch test: a linear displacement field is reproduced on a distorted mesh", "[solver][patch]",
+                   Tet4, Tet10, Hex8) {
+  using E = TestType;
+  std::mt19937 rng(42);
+  const int n = 4;
+  const Mesh<E> mesh = distorted_box<E>(n, rng);
+  const std::vector<Index> boundary = nodes_of_faces(mesh, boundary_faces(mesh));
+  std::vector<char> on_boundary(mesh.num_nodes(), 0);
+  for (Index i : boundary) on_boundary[i] = 1;
+  REQUIRE(boundary.size() < static_cast<size_t>(mesh.num_nodes()));  // there are interior nodes
+
+  std::uniform_real_distribution<Scalar> u(-1e-3, 1e-3);
+  Mat3 A;
+  for (int i = 0; i < 9; ++i) A(i / 3, i % 3) = u(rng);
+  const Vec3 b(u(rng), u(rng), u(rng));
+  auto field = [A, b](Scalar, const Vec3& X) -> Vec3 { return A * X + b; };
+
+  auto error = [&](const auto& solver) {
+    Scalar worst = 0;
+    for (Index i = 0; i < mesh.num_nodes(); ++i)
+      if (!on_boundary[i]) worst = std::max(worst, (solver.displacement(i) - field(0, mesh.node(i))).norm());
+    return worst / (A.norm() * n);  // relative to the field's variation over the box
+  };
+
+  Solver<E, Linear> lin(mesh, soft);
+  lin.prescribe(boundary, field);
+  lin.solve_static();
+  const Scalar e_lin = error(lin);
+
+  SolverSettings tight;
+  tight.newton.residual_tolerance = 1e-12;
+  Solver<E, Corotational> cor(mesh, soft, tight);
+  cor.prescribe(boundary, field);
+  const StepReport rep = cor.solve_static();
+  const Scalar e_cor = error(cor);
+  fmt::print("patch test {:6} ({} nodes, {} interior): linear error {:.2e}, corotational {:.2e} ({} Newton it.)\n",
+             E::name, mesh.num_nodes(), mesh.num_nodes() - static_cast<Index>(boundary.size()), e_lin, e_cor,
+             rep.newton_iterations);
+  // Linear: the exact solution is in the FE space, so the only error is the LDLT solve,
+  // ~cond(K) eps ~ 1e3 * 1e-16 on these <= 2,200-dof systems (measured 3e-14 to 5e-14).
+  // 1e-10 as asked.
+  REQUIRE(e_lin <= 1e-10);
+  // Corotational: with a homogeneous F = I + A every element extracts the same R, and
+  // R K0 (R^T x - X0) with R^T x - X0 linear is the (rotated) linear patch force, which cancels
+  // at interior nodes: the linear field is an exact equilibrium here too. What is left is the
+  // Newton stopping test (|r| <= 1e-12 of the initial imbalance; the warped tangent omits
+  // dR/dx, a relative O(|A|) = 1e-3 error, so Newton contracts ~1e-3 per iteration and stops
+  // somewhere below 1e-12; measured 1e-13 to 1.2e-12 in 4-5 iterations). 1e-8 bounds that
+  // with margin while failing for any error at the level of the nonlinearity (|A| = 1e-3).
+  REQUIRE(e_cor <= 1e-8);
+  REQUIRE(state_finite(lin));
+  REQUIRE(state_finite(cor));
+}
+
+// ---- cantilever vs Timoshenko ----------------------------------------------------------------
+
+namespace {
+
+struct CantileverResult {
+  Scalar deflection;  // end-face average, work-conjugate to the uniform shear traction
+  Index dofs;
+  double seconds;
+};
+
+/// Cantilever 10 x 1 x 1 with (10 r) x r x r cells, clamped at x = 0, uniform shear traction of
+/// total P = 1 along -z on x = 10. Returns f_ext . u / P: the traction-weighted (= area) average
+/// of -u_z over the end face, the quantity beam theory predicts.
+template <FiniteElement E>
+CantileverResult cantilever(int r, Scalar nu) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Mesh<E> mesh = box_mesh<E>({10 * r, r, r, Vec3(10, 1, 1)});
+  SolverSettings s;
+  s.static_linear.kind = LinearSolverKind::Direct;
+  Solver<E, Linear> solver(mesh, Material{1000.0, nu, 1.0}, s);
+  solver.fix(mesh.node_set("xmin"));
+  solver.add_traction(mesh.face_set("xmax"), Vec3(0, 0, -1.0));
+  solver.solve_static();
+  return {solver.external_work_potential() / 1.0, solver.num_dofs(), seconds_since(t0)};
+}
+
+/// Timoshenko tip deflection P L^3 / (3 E I) + P L / (kappa G A), kappa = 5/6 (rectangle).
+Scalar timoshenko(Scalar nu) {
+  const Scalar P = 1, L = 10, E = 1000, I = 1.0 / 12, A = 1, G = E / (2 * (1 + nu));
+  return P * L * L * L / (3 * E * I) + P * L / (5.0 / 6.0 * G * A);
+}
+
+template <FiniteElement E>
+std::vector<Scalar> cantilever_series(const std::vector<int>& levels, Scalar nu, Scalar exact) {
+  std::vector<Scalar> d;
+  for (int r : levels) {
+    const CantileverResult c = cantilever<E>(r, nu);
+    const Scalar err = c.deflection / exact - 1;
+    std::string order = "-";
+    if (d.size() >= 1 && nu == 0) order = fmt::format("{:.2f}", std::log2((d.back() / exact - 1) / err));
+    fmt::print("  {:6} nu={:4} {:>9} {:6} dofs  deflection {:.7f}  vs Timoshenko {:+.3e}  order {:>5}  {:.2f} s\n",
+               E::name, nu, fmt::format("{}x{}x{}", 10 * r, r, r), c.dofs, c.deflection, err, order, c.seconds);
+    d.push_back(c.deflection);
+  }
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("cantilever under end shear converges to Timoshenko theory (nu = 0)", "[solver][cantilever]") {
+  // nu = 0: the clamp imposes no lateral-contraction constraint, and for nu = 0 the elementary
+  // parabolic shear distribution is exact, so Timoshenko with kappa = 5/6 is the 3D answer up to
+  // the clamp's local warping restraint: Richardson extrapolation of the Tet10 series lands
+  // within 2e-5 of it (measured), far below the tolerances below.
+  const Scalar exact = timoshenko(0.0);
+  fmt::print("Cantilever 10x1x1, E = 1000, nu = 0, P = 1: Timoshenko deflection {:.6f}\n", exact);
+  // Compliance (P delta = 2 x energy) converges at twice the energy-norm rate: h^2 for the
+  // linear elements, h^4 for Tet10 on smooth solutions. Levels double the resolution.
+  const auto hex = cantilever_series<Hex8>({1, 2, 4, 8}, 0.0, exact);
+  const auto tet4 = cantilever_series<Tet4>({1, 2, 4, 8}, 0.0, exact);
+  const auto tet10 = cantilever_series<Tet10>({1, 2, 4}, 0.0, exact);
+  auto order = [&](const std::vector<Scalar>& d, size_t i) {  // from levels i-1 and i, vs exact
+    return std::log2((exact - d[i - 1]) / (exact - d[i]));
+  };
+  // Conforming displacement FE on nested meshes (the Kuhn split of a refined grid refines the
+  // coarse Kuhn split) underestimate the compliance and increase monotonically with refinement.
+  for (const auto* d : {&hex, &tet4, &tet10})
+    for (size_t i = 1; i < d->size(); ++i) REQUIRE((*d)[i] > (*d)[i - 1]);
+  // Tet10 (quadratic, no shear locking): the finest level (40x4x4, 20k dofs, ~2 s) is within
+  // 0.1% as required (measured -6e-6; 20x2x2 is already at -1.5e-4).
+  REQUIRE(std::abs(tet10.back() / exact - 1) < 1e-3);
+  // Tet10 order from successive differences (the last error is at the level of the model
+  // error, so differences are the cleaner measure): measured 3.3. Theory 4 for smooth
+  // solutions; the singular stress at the clamped edges lowers it. [2.5, 4.5] rejects a
+  // linear-element rate (2) and anything faster than theory.
+  const Scalar p10 = std::log2((tet10[1] - tet10[0]) / (tet10[2] - tet10[1]));
+  fmt::print("  Tet10 order from successive differences: {:.2f}\n", p10);
+  REQUIRE(p10 > 2.5);
+  REQUIRE(p10 < 4.5);
+  // Hex8 (fully integrated trilinear: shear locking in bending) and Tet4 (constant strain:
+  // locks worse) cannot reach 0.1% within the time budget: 0.1% would need ~240x24x24 Hex8
+  // cells (1.4 M dofs). At 80x8x8 (20k dofs, ~2 s) they are at -0.78% and -5.1% (measured);
+  // the bounds 1% and 6% assert that with ~20% margin on the error.
+  REQUIRE(std::abs(hex.back() / exact - 1) < 0.01);
+  REQUIRE(std::abs(tet4.back() / exact - 1) < 0.06);
+  // Their asymptotic order is 2: measured Hex8 1.58, 1.87, 1.97 and Tet4 0.75, 1.36, 1.77
+  // (pre-asymptotic: the coarse Tet4 meshes are almost rigid). The last order must be in
+  // [1.7, 2.3] for Hex8 and [1.5, 2.3] for Tet4 (still approaching 2 from below).
+  fmt::print("  Hex8 orders {:.2f} {:.2f} {:.2f}; Tet4 orders {:.2f} {:.2f} {:.2f}\n", order(hex, 1), order(hex, 2),
+             order(hex, 3), order(tet4, 1), order(tet4, 2), order(tet4, 3));
+  REQUIRE(order(hex, 3) > 1.7);
+  REQUIRE(order(hex, 3) < 2.3);
+  REQUIRE(order(tet4, 3) > 1.5);
+  REQUIRE(order(tet4, 3) < 2.3);
+  // Richardson extrapolation with the theoretical order 2 removes the h^2 term: Hex8's limit
+  // is then within 0.1% of Timoshenko (measured -2.4e-4) -- the locking error is pure
+  // discretisation error, not a wrong answer.
+  const Scalar hex_limit = hex[3] + (hex[3] - hex[2]) / 3;
+  fmt::print("  Hex8 Richardson (p = 2) limit {:.6f} ({:+.2e})\n", hex_limit, hex_limit / exact - 1);
+  REQUIRE(std::abs(hex_limit / exact - 1) < 1e-3);
+}
+
+TEST_CASE("cantilever with nu = 0.45: refinement series converge", "[solver][cantilever]") {
+  // With nu = 0.45 the clamp prevents the section's lateral contraction and the 3D answer is a
+  // few percent below beam theory, so the series are only checked for convergence.
+  const Scalar beam = timoshenko(0.45);
+  fmt::print("Cantilever 10x1x1, E = 1000, nu = 0.45, P = 1: Timoshenko deflection {:.6f}\n", beam);
+  const auto hex = cantilever_series<Hex8>({1, 2, 4, 8}, 0.45, beam);
+  const auto tet4 = cantilever_series<Tet4>({1, 2, 4, 8}, 0.45, beam);
+  const auto tet10 = cantilever_series<Tet10>({1, 2, 4}, 0.45, beam);
+  auto diffs = [](const std::vector<Scalar>& d) {
+    std::vector<Scalar> out;
+    for (size_t i = 1; i < d.size(); ++i) out.push_back(d[i] - d[i - 1]);
+    return out;
+  };
+  const auto dh = diffs(hex), d4 = diffs(tet4), d10 = diffs(tet10);
+  fmt::print("  differences: Hex8 {:.4f} {:.4f} {:.4f}; Tet4 {:.4f} {:.4f} {:.4f}; Tet10 {:.4f} {:.4f}\n", dh[0], dh[1],
+             dh[2], d4[0], d4[1], d4[2], d10[0], d10[1]);
+  // Nested conforming spaces: monotone increase (compliance is a lower bound).
+  for (const auto* d : {&dh, &d4, &d10})
+    for (Scalar x : *d) REQUIRE(x > 0);
+  // Converging: successive differences shrink. Hex8 and Tet10 from the first level on; Tet4
+  // (volumetric locking at nu = 0.45 on top of shear locking: its coarsest meshes are nearly
+  // rigid, 0.44 vs ~3.97) only from 20x2x2 on -- measured 0.77, 1.21, 0.96.
+  REQUIRE(dh[1] < dh[0]);
+  REQUIRE(dh[2] < dh[1]);
+  REQUIRE(d10[1] < d10[0]);
+  REQUIRE(d4[2] < d4[1]);
+  // Tet10 contracts by ~4 per level (measured 0.177 -> 0.043): at least 2.
+  REQUIRE(d10[1] < 0.5 * d10[0]);
+  // A common limit: every element's finest value lies below the Tet10 limit estimate (lower
+  // bounds), and Tet10's own estimate (Richardson with its measured ratio) is below beam theory
+  // by the expected few percent (measured about -1.7%): between 0 and -5%.
+  const Scalar ratio = d10[0] / d10[1];
+  const Scalar tet10_limit = tet10[2] + d10[1] / (ratio - 1);
+  fmt::print("  Tet10 extrapolated limit {:.5f} ({:+.2f}% vs beam theory)\n", tet10_limit, 100 * (tet10_limit / beam - 1));
+  REQUIRE(hex.back() < tet10_limit);
+  REQUIRE(tet4.back() < tet10_limit);
+  REQUIRE(tet10_limit < beam);
+  REQUIRE(tet10_limit > 0.95 * beam);
+}
+
+// ---- Newmark energy --------------------------------------------------------------------------
+
+TEST_CASE("undamped average-acceleration Newmark conserves energy on a linear problem", "[solver][newmark]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  SolverSettings s;
+  s.linear.kind = LinearSolverKind::Direct;  // exact solves: no CG residual feeding the drift
+  const auto t0 = std::chrono::steady_clock::now();
+
+  SECTION("free vibration from a bent shape, 10,000 steps, and 100x the time step") {
+    for (Scalar dt : {0.01, 1.0}) {
+      Solver<Hex8, Linear> solver(mesh, soft, s);
+      solver.fix(mesh.node_set("xmin"));
+      Vector u0(solver.num_dofs());
+      for (Index i = 0; i < mesh.num_nodes(); ++i) {
+        const Vec3 X = mesh.node(i);
+        u0.segment<3>(3 * i) = Vec3(0.002 * X.x() * (X.z() - 0.5), 0.001 * X.x(), -0.01 * X.x() * X.x());
+      }
+      solver.set_state(u0, Vector::Zero(solver.num_dofs()));
+      const Scalar E0 = solver.kinetic_energy() + solver.strain_energy();
+      Scalar drift = 0, max_kinetic = 0, max_u = 0;
+      const int steps = dt < 0.1 ? 10000 : 1000;
+      for (int k = 0; k < steps; ++k) {
+        solver.step(dt);
+        const Scalar Ek = solver.kinetic_energy();
+        drift = std::max(drift, std::abs(Ek + solver.strain_energy() - E0) / E0);
+        max_kinetic = std::max(max_kinetic, Ek);
+        max_u = std::max(max_u, solver.displacement().cwiseAbs().maxCoeff());
+      }
+      fmt::print("Newmark free vibration, dt = {}: {} steps, max |E - E0| / E0 = {:.2e}, max KE / E0 = {:.3f}, "
+                 "max |u| = {:.4f} (|u0| = {:.4f})\n",
+                 dt, steps, drift, max_kinetic / E0, max_u, u0.cwiseAbs().maxCoeff());
+      // Trapezoidal rule on M a + K u = 0: 0.5 v.Mv + 0.5 u.Ku is an exact invariant; only
+      // round-off of the direct solves accumulates (a random walk of ~1e-16 per step: ~1e-14
+      // after 1e4 steps; measured 6e-13 at dt = 0.01, 2e-12 at dt = 1). 1e-8 as asked.
+      REQUIRE(drift < 1e-8);
+      // It really oscillates (energy goes back and forth between the two forms) ...
+      REQUIRE(max_kinetic > 0.1 * E0);
+      // ... and stays bounded: u.Ku <= 2 E0 bounds |u|; the initial shape is near the lowest
+      // mode, so |u| never exceeds ~1x its initial size (2x allowed).
+      REQUIRE(max_u < 2 * u0.cwiseAbs().maxCoeff());
+      REQUIRE(state_finite(solver));
+      REQUIRE(solver.time() == Approx(steps * dt).epsilon(1e-12));
+    }
+  }
+  SECTION("constant load from rest: kinetic + strain - f.u is conserved") {
+    Solver<Hex8, Linear> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 5.0, -10.0));
+    // From rest at u = 0 the total energy is 0 and must stay 0. Scale: the largest strain
+    // energy reached (the bar swings to twice its static deflection: 4x the static energy).
+    Scalar drift = 0, scale = 0;
+    for (int k = 0; k < 2000; ++k) {
+      solver.step(0.01);
+      const Scalar H = solver.kinetic_energy() + solver.strain_energy() - solver.external_work_potential();
+      scale = std::max(scale, solver.strain_energy());
+      drift = std::max(drift, std::abs(H));
+    }
+    fmt::print("Newmark under constant load: max |KE + SE - f.u| / max SE = {:.2e}\n", drift / scale);
+    REQUIRE(scale > 0);
+    REQUIRE(drift < 1e-8 * scale);  // exact invariant of the trapezoidal rule for constant f
+  }
+  fmt::print("  (energy section took {:.2f} s)\n", seconds_since(t0));
+}
+
+// ---- damped dynamics reach the static solution -----------------------------------------------
+
+template <class E, class M>
+void damped_to_static(const Mesh<E>& mesh, Vec3 g, int steps, Scalar dt, Scalar alpha, Scalar tol,
+                      SolverSettings s = {}) {
+  s.rayleigh_mass = alpha;
+  Solver<E, M> dyn(mesh, soft, s);
+  dyn.fix(mesh.node_set("xmin"));
+  dyn.add_gravity(g);
+  SolverSettings st = s;
+  st.newton.residual_tolerance = 1e-10;
+  Solver<E, M> sta(mesh, soft, st);
+  sta.fix(mesh.node_set("xmin"));
+  sta.add_gravity(g);
+  sta.solve_static(M::constant_tangent ? 1 : 4);
+  const Vector& us = sta.displacement();
+  Scalar half = 0;
+  for (int k = 0; k < steps; ++k) {
+    dyn.step(dt);
+    if (k == steps / 2) half = (dyn.displacement() - us).norm() / us.norm();
+  }
+  const Scalar end = (dyn.displacement() - us).norm() / us.norm();
+  fmt::print("damped {:6} {:13}: |u(T) - u_static| / |u_static| = {:.2e} (at T/2: {:.2e}), |v(T)| = {:.1e}\n",
+             E::name, M::name, end, half, dyn.velocity().norm());
+  REQUIRE(state_finite(dyn));
+  REQUIRE(end < tol);
+  REQUIRE((end < half || end < 1e-9));  // approaching it, unless already at round-off
+}
+
+TEST_CASE("a long damped run settles on the static solution", "[solver][damping]") {
+  // bar 4x1x1, gravity 9.81 (beam theory: tip deflection 1.26 = 31% of the length, tip rotation
+  // 0.42 rad: a large rotation for the corotational run). Mass damping alpha = 7 ~ 2 omega_1 (omega_1 = 3.5 rad/s from beam
+  // theory): mode 1 is critically damped, every other mode decays like exp(-alpha t / 2).
+  // 1,000 steps of 0.01 s: exp(-35) ~ 1e-15 in exact time integration; the stiffest modes
+  // (omega dt ~ 4) are damped a little less by the trapezoidal rule but start ~1e-4 smaller.
+  // What remains is the solver tolerance: CG stops at 1e-8 of the right-hand side, and the
+  // corotational Newton at a relative residual of 1e-6 per step -- but near rest the step's
+  // right-hand side, hence its error, is tiny. Measured 1e-9 to 4e-9 for both models (at the
+  // CG tolerance's level, so it moves with round-off from build to build); bounds 1e-7 and
+  // 1e-6 (the latter the Newton tolerance).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  damped_to_static<Hex8, Linear>(mesh, Vec3(0, 0, -9.81), 1000, 0.01, 7.0, 1e-7);
+  damped_to_static<Hex8, Corotational>(mesh, Vec3(0, 0, -9.81), 1000, 0.01, 7.0, 1e-6);
+}
+
+// ---- determinism across threads --------------------------------------------------------------
+
+TEST_CASE("one and two threads give bitwise identical results", "[solver][threads]") {
+  // The assembly is coloured: each matrix entry and force entry receives its contributions in
+  // the same order whatever the thread count, so the results must be equal bit for bit.
+  if (max_threads() == 1)
+    WARN("built without OpenMP: settings.threads has no effect, so this test cannot tell threads apart");
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(20, 6, 6);
+  std::vector<Vector> u;
+  for (int threads : {1, 2}) {
+    SolverSettings s;
+    s.threads = threads;
+    Solver<Hex8, Corotational> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(Vec3(0, 0, -9.81));
+    for (int k = 0; k < 5; ++k) solver.step(0.01);
+    REQUIRE(state_finite(solver));
+    u.push_back(solver.displacement());
+  }
+  REQUIRE(u[0].norm() > 0);
+  REQUIRE((u[0].array() == u[1].array()).all());
+}
+
+// ---- invariants for every element x elastic model --------------------------------------------
+
+TEMPLATE_LIST_TEST_CASE("invariants of every element and elastic model", "[solver][invariants]", AllCombos) {
+  using E = typename TestType::E;
+  using M = typename TestType::M;
+  const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
+  Solver<E, M> solver(mesh, soft);
+  const Index n = mesh.num_nodes();
+
+  // At rest: no internal force. Linear: K0 * 0, exactly. Corotational: R = polar(X G) = I to
+  // ~eps, so f ~ eps E h^2 per node (h = 1 here, E = 3000): 1e-12 E is ample.
+  REQUIRE(solver.internal_force().cwiseAbs().maxCoeff() <= (M::constant_tangent ? 0.0 : 1e-12 * soft.young));
+
+  // A random deformed state: 2% random nodal displacements, then a 60 degree rotation about an
+  // oblique axis through the bar's centre.
+  std::mt19937 rng(5);
+  std::normal_distribution<Scalar> nd(0.0, 0.02);
+  const Mat3 Q = Eigen::AngleAxisd(std::numbers::pi / 3, Vec3(1, -2, 3).normalized()).toRotationMatrix();
+  const Vec3 c = mesh.nodes().rowwise().mean();
+  Vector u(3 * n);
+  for (Index i = 0; i < n; ++i) {
+    const Vec3 X = mesh.node(i);
+    u.segment<3>(3 * i) = Q * (X + Vec3(nd(rng), nd(rng), nd(rng)) - c) + c - X;
+  }
+  solver.set_state(u, Vector::Zero(3 * n));
+  const Vector f = solver.internal_force();
+  const Eigen::Matrix3Xd F = as_nodes(f);
+  // Linear theory balances moments in the reference configuration (sum X x K0 u = 0 because
+  // K0 annihilates infinitesimal rotations about any point); the corotational force must
+  // balance them in the current one (x = X + u).
+  const Eigen::Matrix3Xd P = M::constant_tangent ? Eigen::Matrix3Xd(mesh.nodes()) : solver.positions();
+  Vec3 net = Vec3::Zero(), torque = Vec3::Zero();
+  Scalar total = 0;
+  for (Index i = 0; i < n; ++i) {
+    net += F.col(i);
+    torque += P.col(i).cross(F.col(i));
+    total += F.col(i).norm();
+  }
+  const Scalar size = (mesh.nodes().rowwise().maxCoeff() - mesh.nodes().rowwise().minCoeff()).norm();
+  const Scalar rel_net = net.norm() / total, rel_torque = torque.norm() / (total * size);
+  fmt::print("invariants {:6} {:22}: net force {:.1e}, net torque {:.1e} (relative to sum |f| and sum |f| x size)\n",
+             E::name, M::name, rel_net, rel_torque);
+  // Sums of ~1e3 nodal forces that cancel: ~n eps relative; 1e-12.
+  REQUIRE(rel_net <= 1e-12);
+  if (!std::is_same_v<M, CorotationalPerElement> || std::is_same_v<E, Tet4>) {
+    // Exact theorems: Linear (see above); Corotational with the polar R at every quadrature
+    // point, whose stretch part is coaxial with Hooke's stress, so every point's moment
+    // vanishes identically (per element for Tet4, where the two variants coincide).
+    REQUIRE(rel_torque <= 1e-12);
+  } else {
+    // CorotationalPerElement on Hex8 and Tet10 (one R from the centre F) does NOT balance moments
+    // exactly: the force misses the dR/dx term, which is non-zero for an element that is not
+    // homogeneously strained, leaving a net moment of relative size O(strain) (measured here
+    // 1.4e-4 Hex8, 2.5e-4 Tet10 at 2% strain; per single element 1e-4 at 0.1%, 2e-3 at 1%,
+    // 1e-2 at 10%). Bounded by a tenth of the strain level, 2e-3: a wrong rotation (e.g. R^T
+    // for R) would give O(1). See the report: this is a modelling limitation, not round-off.
+    REQUIRE(rel_torque <= 2e-3);
+  }
+
+  // Symmetric tangent at that state (R K0 R^T block by block): a few ulps.
+  const SparseMatrix K = solver.tangent();
+  const SparseMatrix KT = K.transpose();
+  REQUIRE((K - KT).norm() <= 1e-14 * K.norm());
+
+  // Damped dynamics from rest under gravity settle towards the static solution (bar 4x2x2:
+  // omega_1 ~ 7 rad/s; alpha = 14 damps mode 1 critically, the rest like exp(-7 t)). After 3 s
+  // (300 steps): exp(-21) ~ 1e-9 for resolved modes, the stiff ones a bit less; default
+  // settings (CG 1e-8, Newton 1e-6). Measured 4e-7 (Tet4), 1e-8 (Hex8), 1e-5 (Tet10, whose
+  // stiffest modes, omega dt >> 1, decay slowest under the trapezoidal rule). 1e-3 leaves room
+  // for that while still failing if the run settled anywhere else.
+  damped_to_static<E, M>(mesh, Vec3(0, 0, -9.81), 300, 0.01, 14.0, 1e-3);
+}
+
+// ---- reactions, mass ---------------------------------------------------------------------------
+
+TEMPLATE_TEST_CASE("reactions at the clamp balance the weight; mass = density x volume", "[solver][reactions]", Tet4,
+                   Tet10, Hex8) {
+  using E = TestType;
+  const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
+  const Scalar volume = 16, rho = soft.density;
+  const Vec3 g(0.5, -1.0, -9.81);
+  auto check = [&](auto& solver, const char* what) {
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(g);
+    solver.solve_static(4);
+    const Eigen::Matrix3Xd R = as_nodes(solver.reaction_forces());
+    const Vec3 sum = R.rowwise().sum();
+    const Vec3 weight = rho * volume * g;
+    fmt::print("reactions {:6} {:13}: |sum R + m g| / |m g| = {:.1e}\n", E::name, what,
+               (sum + weight).norm() / weight.norm());
+    // Equilibrium at free dofs to the Newton tolerance (1e-10 of the load here), plus round-off
+    // of the sums (measured 1e-14): 1e-8 as asked.
+    REQUIRE((sum + weight).norm() <= 1e-8 * weight.norm());
+    // Reactions only at constrained dofs.
+    for (Index i = 0; i < mesh.num_nodes(); ++i)
+      if (!solver.is_constrained(3 * i)) REQUIRE(R.col(i).norm() == 0);
+  };
+  // 1e-10, not tighter: the linear model's LDLT residual floor is ~3e-12 to 9e-12 relative on
+  // these meshes, and a static Newton that cannot reach its tolerance throws after 50 iterations.
+  SolverSettings s;
+  s.newton.residual_tolerance = 1e-10;
+  Solver<E, Linear> lin(mesh, soft, s);
+  check(lin, "Linear");
+  Solver<E, Corotational> cor(mesh, soft, s);
+  check(cor, "Corotational");
+
+  // Mass: the consistent mass integrates rho N_a N_b exactly, and sum_ab N_a N_b = 1, so its
+  // sum is rho V to round-off (1e-13 for ~1e4 terms); HRZ lumping rescales to the same total.
+  for (MassKind kind : {MassKind::Consistent, MassKind::Lumped}) {
+    SolverSettings ms;
+    ms.mass = kind;
+    Solver<E, Linear> m(mesh, Material{3000, 0.45, 2.5}, ms);
+    REQUIRE(m.mass() == Approx(2.5 * volume).epsilon(1e-13));
+    REQUIRE(m.volume() == Approx(volume).epsilon(1e-13));
+  }
+}
+
+// ---- bad input and the failed-step contract -----------------------------------------------------
+
+TEST_CASE("bad input is rejected with clear errors", "[solver][errors]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  const Scalar nan = std::numeric_limits<Scalar>::quiet_NaN(), inf = std::numeric_limits<Scalar>::infinity();
+
+  SECTION("invalid material through the constructor") {
+    REQUIRE(contains(error_of<InvalidArgument>([&] { (void)Solver<Hex8, Linear>(mesh, Material{-1, 0.3, 1}); }),
+                     "Young's modulus"));
+    REQUIRE(contains(error_of<InvalidArgument>([&] { (void)Solver<Hex8, Corotational>(mesh, Material{1, 0.5, 1}); }),
+                     "Poisson ratio"));
+    REQUIRE(contains(error_of<InvalidArgument>([&] { (void)Solver<Tet4, Linear>(bar_mesh<Tet4>(2, 1, 1), Material{1, 0.3, nan}); }),
+                     "density"));
+  }
+  SECTION("Newmark parameters that are not unconditionally stable") {
+    for (const auto& [beta, gamma] : {std::pair{0.0, 0.5}, {1.0 / 6, 0.5}, {0.25, 0.4}, {0.3, 0.7}, {nan, 0.5}}) {
+      SolverSettings s;
+      s.newmark.beta = beta;
+      s.newmark.gamma = gamma;
+      INFO("beta " << beta << ", gamma " << gamma);
+      REQUIRE(contains(error_of<InvalidArgument>([&] { (void)Solver<Hex8, Linear>(mesh, soft, s); }), "unconditionally stable"));
+      Solver<Hex8, Linear> ok(mesh, soft);
+      REQUIRE(contains(error_of<InvalidArgument>([&] { ok.set_settings(s); }), "unconditionally stable"));
+      REQUIRE(ok.settings().newmark.beta == 0.25);  // rejected settings are not kept
+    }
+    // gamma = 0.6, beta = (gamma + 1/2)^2 / 4 = 0.3025: stable, dissipative; accepted.
+    SolverSettings s;
+    s.newmark.gamma = 0.6;
+    s.newmark.beta = 0.3025;
+    REQUIRE(error_of([&] { (void)Solver<Hex8, Linear>(mesh, soft, s); }) == "(no error)");
+  }
+  SECTION("time step, node indices, no constraint; state unchanged after each failure") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    s.add_gravity(Vec3(0, 0, -9.81));
+    // No constrained dof: statics are singular; the message says what to do.
+    const std::string msg = error_of<SolverError>([&] { s.solve_static(); });
+    INFO(msg);
+    REQUIRE(contains(msg, "no degree of freedom is constrained"));
+    REQUIRE(contains(msg, "fix some nodes"));
+    // A bad node in a list: nothing of the call is applied (still no constraint afterwards).
+    std::vector<Index> nodes = mesh.node_set("xmin");
+    nodes.push_back(mesh.num_nodes());
+    REQUIRE(contains(error_of<InvalidArgument>([&] { s.fix(nodes); }),
+                     fmt::format("node {} out of range [0, {})", mesh.num_nodes(), mesh.num_nodes())));
+    REQUIRE(contains(error_of<SolverError>([&] { s.solve_static(); }), "no degree of freedom is constrained"));
+    REQUIRE(contains(error_of<InvalidArgument>([&] { s.add_nodal_force(std::vector<Index>{0, -1}, Vec3(1, 0, 0)); }),
+                     "node -1 out of range"));
+    REQUIRE(contains(error_of<InvalidArgument>([&] { s.add_nodal_force(std::vector<Index>{0}, Vec3(nan, 0, 0)); }),
+                     "must be finite"));
+    s.fix(mesh.node_set("xmin"));
+    s.step(0.01);
+    s.step(0.01);
+    const Vector u = s.displacement(), v = s.velocity(), a = s.acceleration();
+    const Scalar t = s.time();
+    // The rejected nodal forces were not added: the work potential is that of gravity alone.
+    {
+      Solver<Hex8, Corotational> g(mesh, soft);
+      g.add_gravity(Vec3(0, 0, -9.81));
+      g.set_state(u, v, t);
+      REQUIRE(s.external_work_potential() == g.external_work_potential());
+    }
+    for (Scalar dt : {0.0, -0.01, nan, inf}) {
+      INFO("dt = " << dt);
+      REQUIRE(contains(error_of<InvalidArgument>([&] { s.step(dt); }), "time step must be finite and > 0"));
+      REQUIRE((s.displacement().array() == u.array()).all());
+      REQUIRE((s.velocity().array() == v.array()).all());
+      REQUIRE((s.acceleration().array() == a.array()).all());
+      REQUIRE(s.time() == t);
+    }
+    REQUIRE(contains(error_of<InvalidArgument>([&] { s.solve_static(0); }), "load_steps"));
+    REQUIRE(contains(error_of<InvalidArgument>([&] { s.set_state(Vector::Zero(3), v); }), "state vectors"));
+    REQUIRE((s.displacement().array() == u.array()).all());
+  }
+}
+
+TEST_CASE("a step that fails leaves displacement, velocity, acceleration and time unchanged", "[solver][errors]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  // Accurate mode with one Newton iteration: a corotational step cannot converge (the first
+  // residual check comes after the first update). Tip load 4 x 5 = 20, about the bar's weight:
+  // a static deflection of ~40% of the length, so Newton has real work to do.
+  SolverSettings one;
+  one.newton.max_iterations = 1;
+  auto expect_unchanged = [](auto& s) {
+    const Vector u = s.displacement(), v = s.velocity(), a = s.acceleration();
+    const Scalar t = s.time();
+    const std::string msg = error_of<SolverError>([&] { s.step(0.01); });
+    INFO(msg);
+    REQUIRE(contains(msg, "did not converge"));
+    CHECK((s.displacement().array() == u.array()).all());
+    CHECK((s.velocity().array() == v.array()).all());
+    CHECK((s.acceleration().array() == a.array()).all());
+    CHECK(s.time() == t);
+  };
+  SECTION("after successful steps") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    s.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, -5.0));
+    s.step(0.01);
+    s.step(0.01);
+    s.set_settings(one);
+    expect_unchanged(s);
+    // And the solver is still usable: with enough iterations the same step succeeds and equals
+    // the step of a twin that never failed, bit for bit (no scratch state leaks).
+    s.set_settings(SolverSettings{});
+    Solver<Hex8, Corotational> twin(mesh, soft);
+    twin.fix(mesh.node_set("xmin"));
+    twin.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, -5.0));
+    for (int k = 0; k < 3; ++k) twin.step(0.01);
+    s.step(0.01);
+    REQUIRE((s.displacement().array() == twin.displacement().array()).all());
+    REQUIRE((s.velocity().array() == twin.velocity().array()).all());
+  }
+  SECTION("the very first step") {
+    // Before the first step the initial acceleration is not yet known (acceleration() is 0);
+    // the step computes it from equilibrium. If the step then fails, acceleration() must still
+    // be what it was. KNOWN LIBRARY BUG (solver.hpp, step(): solve_initial_acceleration()
+    // writes a_ directly before the Newton loop): this CHECK fails; see the report.
+    Solver<Hex8, Corotational> s(mesh, soft, one);
+    s.fix(mesh.node_set("xmin"));
+    s.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, -5.0));
+    expect_unchanged(s);
+  }
+  SECTION("a static solve that fails") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    s.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, -5.0));
+    s.step(0.01);
+    s.set_settings(one);
+    const Vector u = s.displacement(), v = s.velocity(), a = s.acceleration();
+    REQUIRE(contains(error_of<SolverError>([&] { s.solve_static(); }), "static solve failed"));
+    CHECK((s.displacement().array() == u.array()).all());
+    CHECK((s.velocity().array() == v.array()).all());
+    CHECK((s.acceleration().array() == a.array()).all());
+  }
+}
+
+// ---- real-time vs accurate ----------------------------------------------------------------------
+
+TEST_CASE("real-time and accurate Newmark agree on bar90 within a few percent", "[solver][realtime]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+  const std::vector<Index>& tip = mesh.node_set("xmax");
+  std::vector<Scalar> tip_z;
+  std::vector<int> max_newton;
+  for (NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime}) {
+    SolverSettings s;
+    s.newmark.mode = mode;
+    Solver<Hex8, Corotational> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(Vec3(0, 0, -9.81));
+    int most = 0, least = 1 << 30;
+    for (int k = 0; k < 100; ++k) {
+      const StepReport r = solver.step(0.01);
+      most = std::max(most, r.newton_iterations);
+      least = std::min(least, r.newton_iterations);
+    }
+    REQUIRE(state_finite(solver));
+    if (mode == NewmarkMode::RealTime) {
+      REQUIRE(most == 1);
+      REQUIRE(least == 1);
+    }
+    tip_z.push_back(mean_uz(solver, tip));
+    max_newton.push_back(most);
+  }
+  const Scalar diff = std::abs(tip_z[1] - tip_z[0]) / std::abs(tip_z[0]);
+  fmt::print("bar90 Hex8 corotational, 100 steps of 0.01: tip uz accurate {:.5f} (<= {} Newton it./step), "
+             "real-time {:.5f}: relative difference {:.2e}\n",
+             tip_z[0], max_newton[0], tip_z[1], diff);
+  // Real time solves each step's equations linearised at u_n, so each increment is wrong by a
+  // fraction of the order of the rotation increment per step (the end turns by ~0.6 rad in the
+  // 100 steps, ~6e-3 rad per step); accumulated over a quarter period, the tip is off by a
+  // comparable fraction, well under a percent (measured 1.8e-3). The bound is 1%, tighter than
+  // the 5% suggested, since 5% would not catch an error several times the expected size.
+  REQUIRE(diff < 0.01);
+  REQUIRE(tip_z[0] < 0);  // it fell
+}
