@@ -1,0 +1,142 @@
+// Cost of one Newmark step on the SCENES.md bar scenes (E = 3000, nu = 0.45, rho = 1, clamped
+// at x = 0, gravity -z, beta 1/4, gamma 1/2, dt = 0.01), for every element x model x linear
+// solver x mode, single-threaded and with all cores.
+//
+// Each row runs 100 steps (t = 0 -> 1 s): the median, min and max wall time are over steps
+// 6..100 (5 warm-up steps, 95 measured), and the tip displacement at t = 1 s is printed so that
+// a fast wrong answer shows. Output: a table on stdout and a CSV.
+//
+//   bench_step [--scenes bar90,bar720,...] [--threads 1,2] [--csv FILE] [--quick]
+#include <plastifem/plastifem.hpp>
+
+#include <fmt/core.h>
+#include <fmt/os.h>
+
+#include <algorithm>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+using namespace plastifem;
+
+namespace {
+
+struct Row {
+  std::string scene, element, model, solver, mode;
+  int threads;
+  Index dofs;
+  double median_ms, min_ms, max_ms, newton, linear;
+  Scalar tip_uz;
+};
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
+  return out;
+}
+
+std::array<int, 3> scene_size(const std::string& s) {
+  if (s == "bar90") return {10, 3, 3};
+  if (s == "bar720") return {20, 6, 6};
+  if (s == "bar5760") return {40, 12, 12};
+  if (s == "bar46080") return {80, 24, 24};
+  fail<InvalidArgument>("unknown scene '{}'", s);
+}
+
+template <class E, class Model>
+Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind, NewmarkMode mode, int threads) {
+  const auto [nx, ny, nz] = scene_size(scene);
+  SolverSettings st;
+  st.linear = {kind, 1e-6, 1000};  // CG to 1e-6 relative, warm-started (SCENES / issue targets)
+  st.newmark.mode = mode;
+  st.threads = threads;
+#ifdef _OPENMP
+  omp_set_num_threads(threads);
+#endif
+  Solver<E, Model> s(mesh, Material{3000, 0.45, 1.0}, st);
+  s.fix(mesh.node_set("xmin"));
+  s.add_gravity(Vec3(0, 0, -9.81));
+  Index tip = 0;
+  for (Index i : mesh.node_set("xmax"))
+    if (mesh.node(i).y() == ny && mesh.node(i).z() == nz) tip = i;
+  std::vector<double> ms;
+  double newton = 0, lin = 0;
+  for (int k = 1; k <= 100; ++k) {
+    const StepReport r = s.step(0.01);
+    if (k > 5) {
+      ms.push_back(r.wall_ms);
+      newton += r.newton_iterations;
+      lin += r.linear_iterations;
+    }
+  }
+  std::sort(ms.begin(), ms.end());
+  const double n = static_cast<double>(ms.size());
+  return {scene, E::name, Model::name,
+          kind == LinearSolverKind::Direct ? "LDLT" : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
+          threads, s.num_dofs(), ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) try {
+  std::vector<std::string> scenes{"bar90", "bar720"};
+  std::vector<int> threads{1, 2};
+  std::string csv = "bench_step.csv";
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--quick") quick = true;
+    else if (i + 1 < argc && a == "--scenes") scenes = split(argv[++i]);
+    else if (i + 1 < argc && a == "--csv") csv = argv[++i];
+    else if (i + 1 < argc && a == "--threads") {
+      threads.clear();
+      for (const auto& t : split(argv[++i])) threads.push_back(std::stoi(t));
+    } else fail<InvalidArgument>("unknown option '{}'", a);
+  }
+  std::ofstream out(csv);
+  out << "scene,element,model,solver,mode,threads,dofs,median_ms,min_ms,max_ms,newton_per_step,linear_per_step,tip_uz_t1\n";
+  fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>10} {:>9} {:>9} {:>7} {:>8} {:>10}\n", "scene", "elem", "model",
+             "solver", "mode", "thr", "dofs", "median ms", "min ms", "max ms", "Newton", "lin.it", "tip uz(1s)");
+  auto emit = [&](const Row& r) {
+    fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>10.3f} {:>9.3f} {:>9.3f} {:>7.2f} {:>8.1f} {:>10.5f}\n", r.scene,
+               r.element, r.model, r.solver, r.mode, r.threads, r.dofs, r.median_ms, r.min_ms, r.max_ms, r.newton,
+               r.linear, r.tip_uz);
+    out << fmt::format("{},{},{},{},{},{},{},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{:.9g}\n", r.scene, r.element, r.model,
+                       r.solver, r.mode, r.threads, r.dofs, r.median_ms, r.min_ms, r.max_ms, r.newton, r.linear,
+                       r.tip_uz);
+    out.flush();
+  };
+  auto scene_rows = [&]<class E>(const std::string& scene) {
+    const auto [nx, ny, nz] = scene_size(scene);
+    const auto mesh = bar_mesh<E>(nx, ny, nz);
+    for (int t : threads)
+      for (auto kind : {LinearSolverKind::ConjugateGradient, LinearSolverKind::Direct}) {
+        // Direct LDLT refactorises every step: skip it on large corotational scenes, where one
+        // step would take longer than the whole row budget.
+        const bool direct_ok = mesh.num_nodes() < 8000 || kind == LinearSolverKind::ConjugateGradient;
+        emit(measure<E, Linear>(scene, mesh, kind, NewmarkMode::Accurate, t));
+        if (!direct_ok) continue;
+        for (auto mode : {NewmarkMode::Accurate, NewmarkMode::RealTime}) {
+          if (quick && mode == NewmarkMode::RealTime) continue;
+          emit(measure<E, Corotational>(scene, mesh, kind, mode, t));
+          if (!std::is_same_v<E, Tet4>)  // identical to Corotational on Tet4
+            emit(measure<E, CorotationalPerElement>(scene, mesh, kind, mode, t));
+        }
+      }
+  };
+  for (const auto& scene : scenes) {
+    scene_rows.operator()<Hex8>(scene);
+    scene_rows.operator()<Tet4>(scene);
+    scene_rows.operator()<Tet10>(scene);
+  }
+  fmt::print("CSV written to {}\n", csv);
+  return 0;
+} catch (const std::exception& e) {
+  fmt::print(stderr, "bench_step: {}\n", e.what());
+  return 1;
+}
