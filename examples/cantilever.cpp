@@ -2,7 +2,7 @@
 // clamped at x = 0, stepped by implicit Newmark, written as a PVD series for ParaView.
 //
 //   cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10]
-//              [--model corotational|corotational-element|linear] [--mode accurate|realtime] [--steps N]
+//              [--model corotational|corotational-element|linear|neohookean|stable-neohookean] [--mode accurate|realtime] [--steps N]
 //              [--every K] [--out DIR]
 //
 // Open DIR/cantilever.pvd in ParaView; colour by von_mises, warp by displacement (the points
@@ -41,7 +41,7 @@ Options parse(int argc, char** argv) {
     else if (a == "--out") o.out = value();
     else if (a == "--help" || a == "-h") {
       fmt::print("usage: cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10]\n"
-                 "                  [--model corotational|corotational-element|linear] [--mode accurate|realtime] [--steps N]\n"
+                 "                  [--model corotational|corotational-element|linear|neohookean|stable-neohookean] [--mode accurate|realtime] [--steps N]\n"
                  "                  [--every K] [--out DIR]\n");
       std::exit(0);
     } else fail<InvalidArgument>("unknown option '{}' (try --help)", a);
@@ -101,7 +101,11 @@ void run_model(const Options& o) {
   if (o.model == "corotational") run<E, Corotational>(o);
   else if (o.model == "corotational-element") run<E, CorotationalPerElement>(o);
   else if (o.model == "linear") run<E, Linear>(o);
-  else fail<InvalidArgument>("unknown model '{}': corotational, corotational-element or linear", o.model);
+  else if (o.model == "neohookean") run<E, NeoHookean>(o);
+  else if (o.model == "stable-neohookean") run<E, StableNeoHookean>(o);
+  else fail<InvalidArgument>("unknown model '{}': corotational, corotational-element, linear, neohookean or "
+                             "stable-neohookean",
+                             o.model);
 }
 
 }  // namespace

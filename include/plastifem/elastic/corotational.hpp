@@ -79,11 +79,9 @@ struct CorotationalPerElement {
 
 template <FiniteElement E>
 struct CorotationalData {
-  static constexpr int N = E::num_nodes, Q = decltype(E::template quadrature<E::stiffness_degree>())::size;
   ElementNodes<E> X0;
-  std::array<ShapeGradients<E>, Q> G;           ///< dN/dX at each quadrature point
-  std::array<Scalar, Q> dv;                      ///< w_q det J_q
-  Eigen::Matrix<Scalar, N, N> L;                 ///< sum_q dv_q g_qa . g_qb (rotation-free part)
+  QuadraturePoints<E> points;
+  Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;  ///< sum_q dv_q g_qa . g_qb (rotation-free part)
   ShapeGradients<E> G_centre;
   Scalar mu, lambda;
 };
@@ -99,13 +97,10 @@ struct Corotational {
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
     ElementData<E> d;
     d.X0 = X0;
+    d.points = prepare_points<E>(X0);
     d.L.setZero();
-    const auto q = E::template quadrature<E::stiffness_degree>();
-    for (int k = 0; k < q.size; ++k) {
-      d.dv[k] = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
-      d.G[k] = physical_gradient<E>(X0, q.points[k]);
-      d.L.noalias() += d.dv[k] * d.G[k] * d.G[k].transpose();
-    }
+    for (int k = 0; k < d.points.size; ++k)
+      d.L.noalias() += d.points.dv[k] * d.points.G[k] * d.points.G[k].transpose();
     d.G_centre = physical_gradient<E>(X0, reference_centre<E>());
     d.mu = m.mu();
     d.lambda = m.lambda();
@@ -115,7 +110,9 @@ struct Corotational {
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
                          ElementMatrix<E>* K) {
-    constexpr int N = E::num_nodes, Q = ElementData<E>::Q;
+    constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
+    const auto& G = d.points.G;
+    const auto& dv = d.points.dv;
     Eigen::Map<ElementNodes<E>> fm(f.data());
     fm.setZero();
     // Rotated gradients h_qa = R_q g_qa, scaled by sqrt(dv_q), one column per point, so that
@@ -123,17 +120,17 @@ struct Corotational {
     Eigen::Matrix<Scalar, 3 * N, Q> Hs;
     Scalar W = 0;
     for (int k = 0; k < Q; ++k) {
-      const Mat3 F = x * d.G[k];
+      const Mat3 F = x * G[k];
       const Mat3 R = rotation_of(F);
       const Mat3 S = R.transpose() * F;
       const Mat3 eps = 0.5 * (S + S.transpose()) - Mat3::Identity();
       const Scalar tr = eps.trace();
       Mat3 sigma = 2 * d.mu * eps;
       sigma.diagonal().array() += d.lambda * tr;
-      W += d.dv[k] * (d.mu * eps.squaredNorm() + 0.5 * d.lambda * tr * tr);
-      fm.noalias() += (d.dv[k] * R * sigma) * d.G[k].transpose();
+      W += dv[k] * (d.mu * eps.squaredNorm() + 0.5 * d.lambda * tr * tr);
+      fm.noalias() += (dv[k] * R * sigma) * G[k].transpose();
       if (K) {
-        Eigen::Map<Eigen::Matrix<Scalar, 3, N>>(Hs.col(k).data()) = std::sqrt(d.dv[k]) * R * d.G[k].transpose();
+        Eigen::Map<Eigen::Matrix<Scalar, 3, N>>(Hs.col(k).data()) = std::sqrt(dv[k]) * R * G[k].transpose();
       }
     }
     if (K) {

@@ -1,6 +1,7 @@
 #pragma once
 // The ElasticModel concept: what the solver needs from an elastic policy.
 #include <plastifem/elastic/corotational.hpp>
+#include <plastifem/elastic/hyperelastic.hpp>
 #include <plastifem/elastic/linear.hpp>
 
 namespace plastifem {
@@ -21,6 +22,7 @@ concept ElasticModel =
     };
 
 static_assert(ElasticModel<Linear, Hex8> && ElasticModel<Corotational, Tet10> &&
-              ElasticModel<CorotationalPerElement, Hex8>);
+              ElasticModel<CorotationalPerElement, Hex8> && ElasticModel<NeoHookean, Tet4> &&
+              ElasticModel<StableNeoHookean, Hex8> && ElasticModel<NeoHookeanAbaqus, Tet10>);
 
 }  // namespace plastifem

@@ -9,6 +9,8 @@
 #include <plastifem/elastic/material.hpp>
 #include <plastifem/element/element.hpp>
 
+#include <array>
+
 namespace plastifem {
 
 template <FiniteElement E>
@@ -57,6 +59,26 @@ SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Materia
   }
   d.G_centre = physical_gradient<E>(X0, reference_centre<E>());
   return d;
+}
+
+/// Per-point data of the full-integration (stiffness) rule: dN/dX and w_q det J_q, for models
+/// evaluated at quadrature points.
+template <FiniteElement E>
+struct QuadraturePoints {
+  static constexpr int size = decltype(E::template quadrature<E::stiffness_degree>())::size;
+  std::array<ShapeGradients<E>, size> G;  ///< dN/dX at each point
+  std::array<Scalar, size> dv;            ///< w_q det J_q
+};
+
+template <FiniteElement E>
+QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
+  QuadraturePoints<E> p;
+  const auto q = E::template quadrature<E::stiffness_degree>();
+  for (int k = 0; k < q.size; ++k) {
+    p.dv[k] = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
+    p.G[k] = physical_gradient<E>(X0, q.points[k]);
+  }
+  return p;
 }
 
 }  // namespace plastifem

@@ -55,6 +55,7 @@ struct StepReport {
   Scalar residual = 0;           ///< final |r| (accurate mode) or |r| before the one solve (real time)
   Scalar relative_residual = 0;  ///< residual / force scale
   int load_steps = 1;            ///< statics: increments used (after automatic cutting)
+  int substeps = 1;              ///< dynamics: Newmark sub-steps used (> 1 after automatic step cutting)
   double wall_ms = 0;
 };
 
@@ -68,6 +69,8 @@ struct SolverSettings {
   /// Threads for element loops and products: 1 by default (predictable; on small scenes and
   /// busy machines threads cost more than they give), 0: OpenMP default, N: N threads.
   int threads = 1;
+  /// A Newmark step whose Newton iteration fails is cut in halves, up to this many times.
+  int max_step_cuts = 6;
 };
 
 template <FiniteElement E, class Elastic, class Plastic = NoPlasticity, class Enrich = NoEnrichment>
@@ -258,10 +261,58 @@ class Solver {
     return rep;
   }
 
-  /// One Newmark step of size dt. Throws SolverError (state unchanged) if it fails.
+  /// Advances by dt with Newmark's method. If Newton fails, the step is redone as two half
+  /// steps, recursively, up to settings().max_step_cuts times (2^cuts sub-steps): a huge time
+  /// step is then a sequence of smaller ones, like load stepping in statics. Throws SolverError
+  /// with the state unchanged if even the smallest sub-step fails.
   StepReport step(Scalar dt) {
     const auto t0 = std::chrono::steady_clock::now();
     if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
+    StepReport rep;
+    try {
+      rep = newmark_step(dt);
+    } catch (const SolverError& first_failure) {
+      if (settings_.max_step_cuts < 1) throw;
+      const Vector u = u_, v = v_, a = a_, w = first_increment_;
+      const Scalar t = time_;
+      const bool known = initial_acceleration_known_;
+      try {
+        rep = {};
+        rep.substeps = 0;
+        substep(dt / 2, 1, rep);
+        substep(dt / 2, 1, rep);
+      } catch (const SolverError& e) {
+        u_ = u, v_ = v, a_ = a, first_increment_ = w, time_ = t, initial_acceleration_known_ = known;
+        fail<SolverError>("{} (also with the step cut into up to {} sub-steps: {})", first_failure.what(),
+                          1 << settings_.max_step_cuts, e.what());
+      }
+      time_ = t + dt;  // exactly, whatever the sub-steps' round-off
+    }
+    rep.wall_ms = ms_since(t0);
+    return rep;
+  }
+
+ private:
+  void substep(Scalar dt, int depth, StepReport& total) {
+    StepReport r;
+    try {
+      r = newmark_step(dt);
+    } catch (const SolverError&) {
+      if (depth >= settings_.max_step_cuts) throw;
+      substep(dt / 2, depth + 1, total);
+      substep(dt / 2, depth + 1, total);
+      return;
+    }
+    total.newton_iterations += r.newton_iterations;
+    total.linear_iterations += r.linear_iterations;
+    total.residual = r.residual;
+    total.relative_residual = r.relative_residual;
+    total.substeps += 1;
+  }
+
+  /// One Newmark step of size dt; throws SolverError (state unchanged) if Newton fails.
+  StepReport newmark_step(Scalar dt) {
+    const auto t0 = std::chrono::steady_clock::now();
     // a_n: the committed acceleration, or (first step, or after loads changed) the one from
     // equilibrium, kept in scratch until the step succeeds.
     if (!initial_acceleration_known_) solve_initial_acceleration(a_start_);
@@ -281,6 +332,7 @@ class Solver {
 
     StepReport rep;
     const bool realtime = nm.mode == NewmarkMode::RealTime;
+    exact_tangent_ = has_exact_tangent;  // exact Hessian first; projected if it is indefinite
     const int max_it = realtime ? 1 : settings_.newton.max_iterations;
     Scalar scale = 0;
     bool converged = false;
@@ -290,7 +342,9 @@ class Solver {
     dynamic_residual(u_try_, dt, c0, true);  // fills r_, K_ (and f_int_)
     Scalar rnorm = free_norm(r_);
     for (int it = 0;; ++it) {
-      if (!std::isfinite(rnorm)) fail<SolverError>("Newmark step at t = {}: the residual is not finite", t1);
+      if (!std::isfinite(rnorm))
+        fail<SolverError>("Newmark step at t = {}: the residual is not finite{}; the state is unchanged", t1,
+                          locate_blow_up(u_try_));
       scale = std::max(scale, force_scale());
       rep.residual = rnorm;
       rep.relative_residual = rnorm / scale;
@@ -299,22 +353,28 @@ class Solver {
         break;
       }
       if (it == max_it) break;
-      form_system(mass_coef, stiff_coef);
       rhs_ = -r_;
-      // CG warm start: the first increment of the previous step (the motion over one step
-      // changes slowly); later increments start from zero.
-      if (it == 0 && first_increment_.size() == num_dofs()) du_ = first_increment_;
-      else du_.setZero();
-      apply_dirichlet(A_, rhs_);
       for (Index i = 0; i < num_dofs(); ++i)
-        if (constrained_[i]) du_[i] = 0;
+        if (constrained_[i]) rhs_[i] = 0;
       // Inexact Newton (Eisenstat-Walker style): solve only as accurately as this iteration
       // needs to reach the Newton tolerance, never looser than 0.1 nor tighter than the
       // configured linear tolerance. Real-time mode uses the configured tolerance.
       const Scalar target = settings_.newton.residual_tolerance * scale;
       const Scalar cg_tol = realtime ? settings_.linear.tolerance
                                      : std::max(settings_.linear.tolerance, std::min(0.1, 0.5 * target / rnorm));
-      const LinearSolveReport lr = linear_.solve(A_, rhs_, du_, cg_tol);
+      const LinearSolveReport lr = solve_with_fallback(
+          [&] {
+            // CG warm start: the first increment of the previous step (the motion over one
+            // step changes slowly); later increments start from zero.
+            if (it == 0 && first_increment_.size() == num_dofs()) du_ = first_increment_;
+            else du_.setZero();
+            for (Index i = 0; i < num_dofs(); ++i)
+              if (constrained_[i]) du_[i] = 0;
+            form_system(mass_coef, stiff_coef);
+            apply_dirichlet(A_, rhs_);
+            return linear_.solve(A_, rhs_, du_, cg_tol);
+          },
+          [&] { assemble(u_try_, f_int_, &K_); });
       if (it == 0) next_first_increment_ = du_;  // committed with the step
       rep.linear_iterations += lr.iterations;
       ++rep.newton_iterations;
@@ -329,6 +389,9 @@ class Solver {
       Scalar r_new = free_norm(r_), step = 1;
       if (settings_.newton.line_search && !(std::isfinite(r_new) && r_new < (1 - 1e-4) * rnorm)) {
         step = line_search(u_try_, du_, rnorm, dt, c0);
+        // No descent along an exact-Hessian direction: use the projected (PSD) tangent for the
+        // rest of this step.
+        if (step == 1 && has_exact_tangent) exact_tangent_ = false;
         work2_ = u_try_ + step * du_;
         dynamic_residual(work2_, dt, c0, true);
         r_new = free_norm(r_);
@@ -362,6 +425,7 @@ class Solver {
     return rep;
   }
 
+ public:
   // --- observables ------------------------------------------------------------------------
   Scalar kinetic_energy() const {
     symmetric_multiply(M_, v_, work_);
@@ -473,6 +537,41 @@ class Solver {
     return x;
   }
 
+  /// Runs a linear solve; if it fails because the exact tangent made the system indefinite
+  /// (negative LDLT pivot, CG breakdown), switches to the projected tangent and solves again.
+  template <class Solve, class Reassemble>
+  LinearSolveReport solve_with_fallback(Solve&& solve, Reassemble&& reassemble) {
+    try {
+      return solve();
+    } catch (const SolverError&) {
+      if (!exact_tangent_) throw;
+      exact_tangent_ = false;
+      reassemble();
+      return solve();
+    }
+  }
+
+  /// Says where a non-finite residual comes from: the first element whose force is not finite,
+  /// and whether it is inverted (det F <= 0 at a quadrature point, outside the domain of
+  /// energies with ln J).
+  std::string locate_blow_up(const Vector& u) const {
+    if (!u.allFinite()) return " (the displacement itself is not finite)";
+    const auto q = E::template quadrature<E::stiffness_degree>();
+    ElementVector<E> fe;
+    for (Index e = 0; e < mesh_.num_elements(); ++e) {
+      const ElementNodes<E> x = current_nodes(e, u);
+      const Scalar w = Elastic::template evaluate<E>(data_[e], x, fe, nullptr);
+      if (std::isfinite(w) && fe.allFinite()) continue;
+      for (int k = 0; k < q.size; ++k)
+        if (!(jacobian<E>(x, q.points[k]).determinant() > 0))
+          return fmt::format(" (element {} is inverted at quadrature point {}: det F <= 0; {} is undefined there, "
+                             "StableNeoHookean is not)",
+                             e, k, Elastic::name);
+      return fmt::format(" (element {} has a non-finite internal force)", e);
+    }
+    return " (external loads or prescribed displacements are not finite)";
+  }
+
   /// Calls f(xi, dxi/ds, dxi/dt, weight) at the quadrature points of local face `face`, mapped
   /// into the reference element. Tri faces: 3-point degree-2 rule (exact for Tet10's quadratic
   /// N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a times a bilinear dA).
@@ -556,7 +655,11 @@ class Solver {
         [&](Index e) {
           ElementVector<E> fe;
           ElementMatrix<E> Ke;
-          Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, K ? &Ke : nullptr);
+          if constexpr (has_exact_tangent)
+            Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, K ? &Ke : nullptr,
+                                          exact_tangent_ ? Elastic::TangentKind::Exact : Elastic::TangentKind::Projected);
+          else
+            Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, K ? &Ke : nullptr);
           const auto& c = mesh_.element(e);
           for (int a = 0; a < N; ++a) f.segment<3>(3 * c[a]) += fe.template segment<3>(3 * a);
           if (K) assembler_.add_element_matrix(e, Ke, values);
@@ -649,22 +752,27 @@ class Solver {
 
   StepReport newton_static(Vector& u) {
     StepReport rep;
+    exact_tangent_ = has_exact_tangent;
     Scalar scale = std::max(free_norm(f_ext_), 1e-30);
     for (int it = 0; it < settings_.newton.max_iterations + 1; ++it) {
       assemble(u, f_int_, &K_);
       r_ = f_int_ - f_ext_;
       const Scalar rnorm = free_norm(r_);
-      if (!std::isfinite(rnorm)) fail<SolverError>("static Newton: the residual is not finite");
+      if (!std::isfinite(rnorm)) fail<SolverError>("static Newton: the residual is not finite{}", locate_blow_up(u));
       scale = std::max(scale, free_norm(f_int_));
       rep.residual = rnorm;
       rep.relative_residual = rnorm / scale;
       if (rnorm <= settings_.newton.residual_tolerance * scale) return rep;
       if (it == settings_.newton.max_iterations) break;
-      A_ = K_;
       rhs_ = -r_;
-      du_.setZero();
-      apply_dirichlet(A_, rhs_);
-      const LinearSolveReport lr = static_linear_.solve(A_, rhs_, du_);
+      const LinearSolveReport lr = solve_with_fallback(
+          [&] {
+            du_.setZero();
+            A_ = K_;
+            apply_dirichlet(A_, rhs_);
+            return static_linear_.solve(A_, rhs_, du_);
+          },
+          [&] { assemble(u, f_int_, &K_); });
       rep.linear_iterations += lr.iterations;
       ++rep.newton_iterations;
       if (Elastic::constant_tangent && lr.converged) {  // one exact solve is the answer
@@ -688,7 +796,10 @@ class Solver {
           decreased = std::isfinite(r) && r < (1 - 1e-4 * s) * rnorm;
           if (!decreased) s *= 0.5;
         }
-        if (!decreased) s = 1;
+        if (!decreased) {
+          s = 1;
+          exact_tangent_ = false;  // an exact Hessian that does not descend: project from now on
+        }
       }
       u += s * du_;
     }
@@ -728,6 +839,9 @@ class Solver {
   std::vector<char> constrained_;
   SparseMatrix M_, K_, A_;
   bool K_assembled_ = false;
+  /// Models with an exact and a projected tangent (hyperelastic): which one assembly uses.
+  static constexpr bool has_exact_tangent = requires { Elastic::TangentKind::Exact; };
+  bool exact_tangent_ = has_exact_tangent;
   Vector X_, u_, v_, a_;
   Vector f_int_, f_ext_, r_, du_, rhs_, u_try_, a_try_, v_try_, prescribed_;
   mutable Vector work_;

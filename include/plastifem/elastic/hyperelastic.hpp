@@ -1,0 +1,236 @@
+#pragma once
+// Hyperelastic models evaluated at the quadrature points of full Gauss integration:
+//   energy   W = sum_q dv_q psi(F_q),   F_q = sum_a x_a g_qa^T
+//   force    f_a = sum_q dv_q P(F_q) g_qa,                 P = d psi / dF
+//   tangent  K_ab(i,k) = sum_q dv_q sum_jl A_ijkl g_qa[j] g_qb[l],   A = dP/dF
+// A is projected to positive semi-definite per point (eigenvalue clamping) when it is
+// indefinite, so the assembled tangent stays usable by CG and LDLT far from the rest state;
+// at and near the rest state A is positive definite and the tangent is the exact Jacobian.
+//
+// Energies (all from E and nu through mu = E / (2 (1 + nu)), lambda = E nu / ((1 + nu)(1 - 2 nu));
+// each reduces to linear elasticity for small strains):
+//   NeoHookeanEnergy        psi = mu/2 (I1 - 3) - mu ln J + lambda/2 (ln J)^2        (J > 0)
+//   NeoHookeanAbaqusEnergy  psi = C10 (I1bar - 3) + (J - 1)^2 / D1,  I1bar = J^(-2/3) I1,
+//                           C10 = mu / 2, D1 = 2 / K, K = lambda + 2 mu / 3            (J > 0)
+//     (Abaqus' NEO_HOOKE form, so results can be compared with commercial solvers)
+//   StableNeoHookeanEnergy  psi = mu'/2 (I1 - 3) + lambda'/2 (J - alpha)^2 - mu'/2 ln(I1 + 1),
+//                           mu' = 4 mu / 3, lambda' = lambda + 5 mu / 6, alpha = 1 + 3 mu' / (4 lambda')
+//     (Smith, de Goes and Kim 2018): defined and smooth for every F, including inverted
+//     elements (J <= 0), whose energy pushes them back; the Lame reparametrisation makes its
+//     linearisation at F = I equal to linear elasticity with (mu, lambda).
+// An energy whose domain excludes F (J <= 0 for the ln J and Abaqus forms) makes evaluate()
+// return an infinite energy and NaN forces: the solver's line search then rejects the step
+// that would invert an element, and a state that is already inverted gives a clear error.
+#include <plastifem/elastic/small_strain.hpp>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <limits>
+
+namespace plastifem {
+
+using Matrix9 = Eigen::Matrix<Scalar, 9, 9>;  // index (i, j) of F_ij -> i + 3 j (column-major)
+
+namespace detail {
+
+/// The cofactor matrix dJ/dF = J F^{-T}, defined for every F: columns f1 x f2, f2 x f0, f0 x f1.
+inline Mat3 cofactor(const Mat3& F) {
+  Mat3 C;
+  C.col(0) = F.col(1).cross(F.col(2));
+  C.col(1) = F.col(2).cross(F.col(0));
+  C.col(2) = F.col(0).cross(F.col(1));
+  return C;
+}
+
+/// Clamps the negative eigenvalues of a symmetric 9x9 matrix to zero; cheap when already SPD.
+inline void project_psd(Matrix9& A) {
+  if (Eigen::LLT<Matrix9>(A).info() == Eigen::Success) return;
+  Eigen::SelfAdjointEigenSolver<Matrix9> es(A);
+  const auto d = es.eigenvalues().cwiseMax(0.0);
+  A = es.eigenvectors() * d.asDiagonal() * es.eigenvectors().transpose();
+}
+
+}  // namespace detail
+
+struct NeoHookeanEnergy {
+  static constexpr const char* name = "NeoHookean";
+  Scalar mu, lambda;
+  explicit NeoHookeanEnergy(const Material& m) : mu(m.mu()), lambda(m.lambda()) {}
+
+  /// psi, P and (optionally) A at F; false if F is outside the domain (J <= 0).
+  bool evaluate(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
+    const Scalar J = F.determinant();
+    if (!(J > 0)) return false;
+    const Mat3 Finv = F.inverse();
+    const Scalar lnJ = std::log(J);
+    psi = 0.5 * mu * (F.squaredNorm() - 3) - mu * lnJ + 0.5 * lambda * lnJ * lnJ;
+    P = mu * F + (lambda * lnJ - mu) * Finv.transpose();
+    if (A) {
+      // A_ijab = mu d_ia d_jb + (mu - lambda ln J) Finv_bi Finv_ja + lambda Finv_ji Finv_ba
+      const Scalar c = mu - lambda * lnJ;
+      for (int b = 0; b < 3; ++b)
+        for (int a = 0; a < 3; ++a)
+          for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i)
+              (*A)(i + 3 * j, a + 3 * b) =
+                  (i == a && j == b ? mu : 0.0) + c * Finv(b, i) * Finv(j, a) + lambda * Finv(j, i) * Finv(b, a);
+    }
+    return true;
+  }
+};
+
+struct NeoHookeanAbaqusEnergy {
+  static constexpr const char* name = "NeoHookeanAbaqus";
+  Scalar C10, kappa;  ///< kappa = 2 / D1, the bulk modulus
+  explicit NeoHookeanAbaqusEnergy(const Material& m) : C10(m.mu() / 2), kappa(m.lambda() + 2 * m.mu() / 3) {}
+
+  bool evaluate(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
+    const Scalar J = F.determinant();
+    if (!(J > 0)) return false;
+    const Mat3 Finv = F.inverse();
+    const Scalar I1 = F.squaredNorm(), a = std::pow(J, -2.0 / 3.0);
+    psi = C10 * (a * I1 - 3) + 0.5 * kappa * (J - 1) * (J - 1);
+    P = 2 * C10 * a * (F - I1 / 3 * Finv.transpose()) + kappa * (J - 1) * J * Finv.transpose();
+    if (A) {
+      // d(a)/dF_ab = -2/3 a Finv_ba, d(I1)/dF_ab = 2 F_ab, d(Finv_ji)/dF_ab = -Finv_ja Finv_bi,
+      // d(J (J - 1))/dF_ab = (2 J - 1) J Finv_ba.
+      for (int b = 0; b < 3; ++b)
+        for (int k = 0; k < 3; ++k)  // k: row index of the perturbed entry F_kb
+          for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i) {
+              const Scalar iso = -2.0 / 3.0 * a * Finv(b, k) * (F(i, j) - I1 / 3 * Finv(j, i)) +
+                                 a * ((i == k && j == b ? 1.0 : 0.0) - 2.0 / 3.0 * F(k, b) * Finv(j, i) +
+                                      I1 / 3 * Finv(j, k) * Finv(b, i));
+              const Scalar vol = (2 * J - 1) * J * Finv(b, k) * Finv(j, i) - (J - 1) * J * Finv(j, k) * Finv(b, i);
+              (*A)(i + 3 * j, k + 3 * b) = 2 * C10 * iso + kappa * vol;
+            }
+    }
+    return true;
+  }
+};
+
+struct StableNeoHookeanEnergy {
+  static constexpr const char* name = "StableNeoHookean";
+  Scalar mu, lambda, alpha;  ///< the reparametrised mu', lambda' and the rest offset alpha
+  Scalar psi_rest;           ///< psi(I), subtracted so that the rest state has zero energy
+  explicit StableNeoHookeanEnergy(const Material& m)
+      : mu(4.0 / 3.0 * m.mu()), lambda(m.lambda() + 5.0 / 6.0 * m.mu()), alpha(1 + 0.75 * mu / lambda),
+        psi_rest(0.5 * lambda * (1 - alpha) * (1 - alpha) - 0.5 * mu * std::log(4.0)) {
+    if (!(lambda > 0))
+      fail<InvalidArgument>("Stable Neo-Hookean needs lambda + 5 mu / 6 > 0 (Poisson ratio above about -0.31), got "
+                            "nu = {}",
+                            m.poisson);
+  }
+
+  bool evaluate(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
+    const Scalar I1 = F.squaredNorm(), J = F.determinant();
+    const Mat3 cof = detail::cofactor(F);
+    psi = 0.5 * mu * (I1 - 3) + 0.5 * lambda * (J - alpha) * (J - alpha) - 0.5 * mu * std::log(I1 + 1) - psi_rest;
+    const Scalar s = mu * (1 - 1 / (I1 + 1));
+    P = s * F + lambda * (J - alpha) * cof;
+    if (A) {
+      const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> f(F.data()), c(cof.data());
+      *A = s * Matrix9::Identity() + (2 * mu / ((I1 + 1) * (I1 + 1))) * f * f.transpose() +
+           lambda * c * c.transpose();
+      // + lambda (J - alpha) d(cof)/dF, with d(cof_ij)/dF_kl = sum_mn e_ikm e_jln F_mn.
+      const Scalar g = lambda * (J - alpha);
+      auto eps = [](int p, int q, int r) { return static_cast<Scalar>((p - q) * (q - r) * (r - p)) / 2; };
+      for (int l = 0; l < 3; ++l)
+        for (int k = 0; k < 3; ++k)
+          for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i) {
+              if (i == k || j == l) continue;
+              const int m = 3 - i - k, n = 3 - j - l;
+              (*A)(i + 3 * j, k + 3 * l) += g * eps(i, k, m) * eps(j, l, n) * F(m, n);
+            }
+    }
+    return true;
+  }
+};
+
+template <FiniteElement E>
+struct HyperelasticData {
+  ElementNodes<E> X0;
+  QuadraturePoints<E> points;
+  ShapeGradients<E> G_centre;
+};
+
+/// An ElasticModel from a per-point energy (see the file comment for the formulas).
+template <class Energy>
+struct Hyperelastic {
+  static constexpr const char* name = Energy::name;
+  static constexpr bool constant_tangent = false;
+
+  template <FiniteElement E>
+  struct ElementData : HyperelasticData<E> {
+    Energy energy;
+  };
+
+  template <FiniteElement E>
+  static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
+    return {{X0, prepare_points<E>(X0), physical_gradient<E>(X0, reference_centre<E>())}, Energy(m)};
+  }
+
+  template <FiniteElement E>
+  static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
+                         ElementMatrix<E>* K) {
+    return evaluate<E>(d, x, f, K, TangentKind::Projected);
+  }
+
+  /// Projected: A clamped to positive semi-definite per point (what the solver uses);
+  /// Exact: the true Jacobian of the force (indefinite under compression, e.g. for ln J
+  /// Neo-Hookean when J < 1 in rotational directions).
+  enum class TangentKind { Projected, Exact };
+
+  template <FiniteElement E>
+  static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
+                         TangentKind tangent) {
+    constexpr int N = E::num_nodes;
+    Eigen::Map<ElementNodes<E>> fm(f.data());
+    fm.setZero();
+    if (K) K->setZero();
+    Scalar W = 0;
+    Matrix9 A;
+    Eigen::Matrix<Scalar, 9, 3 * N> T;  // T(ij, 3b + k) = sum_l A_ijkl g_b[l]
+    for (int q = 0; q < d.points.size; ++q) {
+      const ShapeGradients<E>& G = d.points.G[q];
+      const Scalar dv = d.points.dv[q];
+      const Mat3 F = x * G;
+      Scalar psi;
+      Mat3 P;
+      if (!d.energy.evaluate(F, psi, P, K ? &A : nullptr)) {
+        f.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
+        return std::numeric_limits<Scalar>::infinity();
+      }
+      W += dv * psi;
+      fm.noalias() += (dv * P) * G.transpose();
+      if (K) {
+        if (tangent == TangentKind::Projected) detail::project_psd(A);
+        for (int b = 0; b < N; ++b)
+          for (int k = 0; k < 3; ++k)
+            T.col(3 * b + k) = A.col(k) * G(b, 0) + A.col(k + 3) * G(b, 1) + A.col(k + 6) * G(b, 2);
+        for (int a = 0; a < N; ++a)
+          K->template middleRows<3>(3 * a).noalias() +=
+              dv * (G(a, 0) * T.template topRows<3>() + G(a, 1) * T.template middleRows<3>(3) +
+                    G(a, 2) * T.template bottomRows<3>());
+      }
+    }
+    return W;
+  }
+
+  /// Cauchy stress at the element centre: sigma = P F^T / J.
+  template <FiniteElement E>
+  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material&) {
+    const Mat3 F = x * d.G_centre;
+    Scalar psi;
+    Mat3 P;
+    if (!d.energy.evaluate(F, psi, P, nullptr)) return Mat3::Constant(std::numeric_limits<Scalar>::quiet_NaN());
+    return P * F.transpose() / F.determinant();
+  }
+};
+
+using NeoHookean = Hyperelastic<NeoHookeanEnergy>;
+using NeoHookeanAbaqus = Hyperelastic<NeoHookeanAbaqusEnergy>;
+using StableNeoHookean = Hyperelastic<StableNeoHookeanEnergy>;
+
+}  // namespace plastifem
