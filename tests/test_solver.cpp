@@ -97,7 +97,9 @@ struct Combo {
 };
 using AllCombos = std::tuple<Combo<Tet4, Linear>, Combo<Tet4, Corotational>, Combo<Tet4, CorotationalPerElement>,
                              Combo<Tet10, Linear>, Combo<Tet10, Corotational>, Combo<Tet10, CorotationalPerElement>,
-                             Combo<Hex8, Linear>, Combo<Hex8, Corotational>, Combo<Hex8, CorotationalPerElement>>;
+                             Combo<Hex8, Linear>, Combo<Hex8, Corotational>, Combo<Hex8, CorotationalPerElement>,
+                             Combo<Tet4, NeoHookean>, Combo<Tet10, NeoHookean>, Combo<Hex8, NeoHookean>,
+                             Combo<Tet4, StableNeoHookean>, Combo<Tet10, StableNeoHookean>, Combo<Hex8, StableNeoHookean>>;
 
 }  // namespace
 
