@@ -13,6 +13,7 @@
 #include <fmt/os.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -110,6 +111,7 @@ int main(int argc, char** argv) try {
                        r.solver, r.mode, r.threads, r.dofs, r.median_ms, r.min_ms, r.max_ms, r.newton, r.linear,
                        r.tip_uz);
     out.flush();
+    std::fflush(stdout);  // progress is visible when the table is redirected to a file
   };
   auto scene_rows = [&]<class E>(const std::string& scene) {
     const auto [nx, ny, nz] = scene_size(scene);

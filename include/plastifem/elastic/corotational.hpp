@@ -40,8 +40,12 @@ inline Mat3 corotated_stress(const Material& m, const Mat3& F) {
   return R * hooke(m, 0.5 * (S + S.transpose()) - Mat3::Identity()) * R.transpose();
 }
 
-struct CorotationalPerElement {
-  static constexpr const char* name = "CorotationalPerElement";
+/// Volumetric::MeanDilatation: the B-bar locking remedy (elastic/small_strain.hpp) in the
+/// rotated frame.
+template <Volumetric V = Volumetric::Full>
+struct CorotationalPerElementT {
+  static constexpr const char* name =
+      V == Volumetric::Full ? "CorotationalPerElement" : "CorotationalMeanDilatation";
   static constexpr bool constant_tangent = false;
 
   template <FiniteElement E>
@@ -49,7 +53,7 @@ struct CorotationalPerElement {
 
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
-    return prepare_small_strain<E>(X0, m);
+    return prepare_small_strain<E>(X0, m, V);
   }
 
   template <FiniteElement E>
@@ -76,6 +80,9 @@ struct CorotationalPerElement {
     return corotated_stress(m, x * d.G_centre);
   }
 };
+
+using CorotationalPerElement = CorotationalPerElementT<>;
+using CorotationalMeanDilatation = CorotationalPerElementT<Volumetric::MeanDilatation>;
 
 template <FiniteElement E>
 struct CorotationalData {

@@ -23,6 +23,7 @@ concept ElasticModel =
 
 static_assert(ElasticModel<Linear, Hex8> && ElasticModel<Corotational, Tet10> &&
               ElasticModel<CorotationalPerElement, Hex8> && ElasticModel<NeoHookean, Tet4> &&
-              ElasticModel<StableNeoHookean, Hex8> && ElasticModel<NeoHookeanAbaqus, Tet10>);
+              ElasticModel<StableNeoHookean, Hex8> && ElasticModel<NeoHookeanAbaqus, Tet10> &&
+              ElasticModel<LinearMeanDilatation, Hex8> && ElasticModel<CorotationalMeanDilatation, Hex8>);
 
 }  // namespace plastifem

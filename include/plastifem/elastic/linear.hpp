@@ -6,8 +6,10 @@
 
 namespace plastifem {
 
-struct Linear {
-  static constexpr const char* name = "Linear";
+/// Volumetric::MeanDilatation: the B-bar locking remedy (elastic/small_strain.hpp).
+template <Volumetric V = Volumetric::Full>
+struct LinearElastic {
+  static constexpr const char* name = V == Volumetric::Full ? "Linear" : "LinearMeanDilatation";
   static constexpr bool constant_tangent = true;  ///< K does not depend on x: assemble once
 
   template <FiniteElement E>
@@ -15,7 +17,7 @@ struct Linear {
 
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
-    return prepare_small_strain<E>(X0, m);
+    return prepare_small_strain<E>(X0, m, V);
   }
 
   /// Internal force f and (optionally) tangent K at current positions x; returns strain energy.
@@ -35,5 +37,8 @@ struct Linear {
     return hooke(m, 0.5 * (H + H.transpose()));
   }
 };
+
+using Linear = LinearElastic<>;
+using LinearMeanDilatation = LinearElastic<Volumetric::MeanDilatation>;
 
 }  // namespace plastifem

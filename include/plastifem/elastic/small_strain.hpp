@@ -6,6 +6,15 @@
 //
 // K0 is built block-wise from seed 001 eq. (30): for nodes a, b with physical gradients g_a, g_b
 //   K0_ab(p, q) = mu g_a[q] g_b[p] + mu delta_pq (g_a . g_b) + lambda g_a[p] g_b[q].
+//
+// Volumetric locking remedy (Volumetric::MeanDilatation, the B-bar method of Hughes 1980 in
+// its mean-dilatation form, equivalent to the Q1/P0 mixed element on Hex8): with
+// C = kappa 1(x)1 + 2 mu (I - 1(x)1 / 3), kappa = lambda + 2 mu / 3, the deviatoric part is
+// integrated at every point and the volumetric part with the element-mean divergence
+//   gbar_a = (1/V) sum_q dv_q g_qa:
+//   K0_ab = sum_q dv_q [mu g_b g_a^T + mu (g_a . g_b) I - 2 mu / 3 g_a g_b^T] + kappa V gbar_a gbar_b^T.
+// One volumetric constraint per element instead of one per point, so a Hex8 near nu = 0.5
+// bends instead of locking. Identical to full integration for Tet4 (one point).
 #include <plastifem/elastic/material.hpp>
 #include <plastifem/element/element.hpp>
 
@@ -39,16 +48,25 @@ struct SmallStrainData {
   ShapeGradients<E> G_centre;  ///< dN/dX at the element centre
 };
 
+/// How the volumetric part of the small-strain stiffness is integrated.
+enum class Volumetric { Full, MeanDilatation };
+
 template <FiniteElement E>
-SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Material& m) {
+SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Material& m,
+                                        Volumetric volumetric = Volumetric::Full) {
   SmallStrainData<E> d;
   d.X0 = X0;
   d.K0.setZero();
-  const Scalar mu = m.mu(), la = m.lambda();
+  const bool mean = volumetric == Volumetric::MeanDilatation;
+  const Scalar mu = m.mu(), la = mean ? -2 * m.mu() / 3 : m.lambda();  // volumetric part added below
   const auto q = E::template quadrature<E::stiffness_degree>();
+  ShapeGradients<E> Gbar = ShapeGradients<E>::Zero();
+  Scalar V = 0;
   for (int k = 0; k < q.size; ++k) {
     const Scalar dv = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
     const ShapeGradients<E> G = physical_gradient<E>(X0, q.points[k]);
+    Gbar += dv * G;
+    V += dv;
     for (int a = 0; a < E::num_nodes; ++a)
       for (int b = 0; b < E::num_nodes; ++b) {
         const Eigen::Matrix<Scalar, 1, 3> ga = G.row(a), gb = G.row(b);
@@ -56,6 +74,13 @@ SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Materia
         block.diagonal().array() += mu * ga.dot(gb);
         d.K0.template block<3, 3>(3 * a, 3 * b) += dv * block;
       }
+  }
+  if (mean) {
+    Gbar /= V;
+    const Scalar kappa = m.lambda() + 2 * m.mu() / 3;
+    for (int a = 0; a < E::num_nodes; ++a)
+      for (int b = 0; b < E::num_nodes; ++b)
+        d.K0.template block<3, 3>(3 * a, 3 * b) += (kappa * V) * Gbar.row(a).transpose() * Gbar.row(b);
   }
   d.G_centre = physical_gradient<E>(X0, reference_centre<E>());
   return d;
