@@ -18,6 +18,7 @@
 //     (Smith, de Goes and Kim 2018): defined and smooth for every F, including inverted
 //     elements (J <= 0), whose energy pushes them back; the Lame reparametrisation makes its
 //     linearisation at F = I equal to linear elasticity with (mu, lambda).
+// Each has a MeanDilatation variant (one volumetric constraint per element) against locking.
 // An energy whose domain excludes F (J <= 0 for the ln J and Abaqus forms) makes evaluate()
 // return an infinite energy and NaN forces: the solver's line search then rejects the step
 // that would invert an element, and a state that is already inverted gives a clear error.
@@ -42,6 +43,19 @@ inline Mat3 cofactor(const Mat3& F) {
   return C;
 }
 
+/// A += scale d(cof F)/dF, with d(cof_ij)/dF_kl = sum_mn e_ikm e_jln F_mn (the Hessian of J).
+inline void add_cofactor_derivative(Matrix9& A, const Mat3& F, Scalar scale) {
+  auto eps = [](int p, int q, int r) { return static_cast<Scalar>((p - q) * (q - r) * (r - p)) / 2; };
+  for (int l = 0; l < 3; ++l)
+    for (int k = 0; k < 3; ++k)
+      for (int j = 0; j < 3; ++j)
+        for (int i = 0; i < 3; ++i) {
+          if (i == k || j == l) continue;
+          const int m = 3 - i - k, n = 3 - j - l;
+          A(i + 3 * j, k + 3 * l) += scale * eps(i, k, m) * eps(j, l, n) * F(m, n);
+        }
+}
+
 /// Clamps the negative eigenvalues of a symmetric 9x9 matrix to zero; cheap when already SPD.
 inline void project_psd(Matrix9& A) {
   if (Eigen::LLT<Matrix9>(A).info() == Eigen::Success) return;
@@ -52,65 +66,78 @@ inline void project_psd(Matrix9& A) {
 
 }  // namespace detail
 
+// Each energy is written psi(F) = psi_dev(F) + U(J): `deviatoric` gives psi_dev, its P and A
+// (false outside its domain), `volumetric` gives U, U', U''. The volumetric contributions are
+// P_vol = U'(J) cof F and A_vol = U'' cof (x) cof + U' d(cof)/dF for every energy; the
+// mean-dilatation variant evaluates U at the element-mean J instead of at each point.
+
 struct NeoHookeanEnergy {
   static constexpr const char* name = "NeoHookean";
+  static constexpr const char* mean_dilatation_name = "NeoHookeanMeanDilatation";
   Scalar mu, lambda;
   explicit NeoHookeanEnergy(const Material& m) : mu(m.mu()), lambda(m.lambda()) {}
 
-  /// psi, P and (optionally) A at F; false if F is outside the domain (J <= 0).
-  bool evaluate(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
+  /// psi_dev = mu/2 (I1 - 3) - mu ln J, P = mu (F - F^{-T}),
+  /// A_ijab = mu d_ia d_jb + mu Finv_bi Finv_ja.
+  bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
     const Scalar J = F.determinant();
     if (!(J > 0)) return false;
     const Mat3 Finv = F.inverse();
-    const Scalar lnJ = std::log(J);
-    psi = 0.5 * mu * (F.squaredNorm() - 3) - mu * lnJ + 0.5 * lambda * lnJ * lnJ;
-    P = mu * F + (lambda * lnJ - mu) * Finv.transpose();
-    if (A) {
-      // A_ijab = mu d_ia d_jb + (mu - lambda ln J) Finv_bi Finv_ja + lambda Finv_ji Finv_ba
-      const Scalar c = mu - lambda * lnJ;
+    psi = 0.5 * mu * (F.squaredNorm() - 3) - mu * std::log(J);
+    P = mu * (F - Finv.transpose());
+    if (A)
       for (int b = 0; b < 3; ++b)
         for (int a = 0; a < 3; ++a)
           for (int j = 0; j < 3; ++j)
             for (int i = 0; i < 3; ++i)
-              (*A)(i + 3 * j, a + 3 * b) =
-                  (i == a && j == b ? mu : 0.0) + c * Finv(b, i) * Finv(j, a) + lambda * Finv(j, i) * Finv(b, a);
-    }
+              (*A)(i + 3 * j, a + 3 * b) = (i == a && j == b ? mu : 0.0) + mu * Finv(b, i) * Finv(j, a);
+    return true;
+  }
+  /// U = lambda/2 (ln J)^2.
+  bool volumetric(Scalar J, Scalar& U, Scalar& dU, Scalar& ddU) const {
+    if (!(J > 0)) return false;
+    const Scalar l = std::log(J);
+    U = 0.5 * lambda * l * l, dU = lambda * l / J, ddU = lambda * (1 - l) / (J * J);
     return true;
   }
 };
 
 struct NeoHookeanAbaqusEnergy {
   static constexpr const char* name = "NeoHookeanAbaqus";
+  static constexpr const char* mean_dilatation_name = "NeoHookeanAbaqusMeanDilatation";
   Scalar C10, kappa;  ///< kappa = 2 / D1, the bulk modulus
   explicit NeoHookeanAbaqusEnergy(const Material& m) : C10(m.mu() / 2), kappa(m.lambda() + 2 * m.mu() / 3) {}
 
-  bool evaluate(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
+  /// psi_dev = C10 (J^(-2/3) I1 - 3).
+  bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
     const Scalar J = F.determinant();
     if (!(J > 0)) return false;
     const Mat3 Finv = F.inverse();
     const Scalar I1 = F.squaredNorm(), a = std::pow(J, -2.0 / 3.0);
-    psi = C10 * (a * I1 - 3) + 0.5 * kappa * (J - 1) * (J - 1);
-    P = 2 * C10 * a * (F - I1 / 3 * Finv.transpose()) + kappa * (J - 1) * J * Finv.transpose();
-    if (A) {
-      // d(a)/dF_ab = -2/3 a Finv_ba, d(I1)/dF_ab = 2 F_ab, d(Finv_ji)/dF_ab = -Finv_ja Finv_bi,
-      // d(J (J - 1))/dF_ab = (2 J - 1) J Finv_ba.
+    psi = C10 * (a * I1 - 3);
+    P = 2 * C10 * a * (F - I1 / 3 * Finv.transpose());
+    if (A)
+      // d(a)/dF_kb = -2/3 a Finv_bk, d(I1)/dF_kb = 2 F_kb, d(Finv_ji)/dF_kb = -Finv_jk Finv_bi.
       for (int b = 0; b < 3; ++b)
-        for (int k = 0; k < 3; ++k)  // k: row index of the perturbed entry F_kb
+        for (int k = 0; k < 3; ++k)
           for (int j = 0; j < 3; ++j)
-            for (int i = 0; i < 3; ++i) {
-              const Scalar iso = -2.0 / 3.0 * a * Finv(b, k) * (F(i, j) - I1 / 3 * Finv(j, i)) +
-                                 a * ((i == k && j == b ? 1.0 : 0.0) - 2.0 / 3.0 * F(k, b) * Finv(j, i) +
-                                      I1 / 3 * Finv(j, k) * Finv(b, i));
-              const Scalar vol = (2 * J - 1) * J * Finv(b, k) * Finv(j, i) - (J - 1) * J * Finv(j, k) * Finv(b, i);
-              (*A)(i + 3 * j, k + 3 * b) = 2 * C10 * iso + kappa * vol;
-            }
-    }
+            for (int i = 0; i < 3; ++i)
+              (*A)(i + 3 * j, k + 3 * b) =
+                  2 * C10 *
+                  (-2.0 / 3.0 * a * Finv(b, k) * (F(i, j) - I1 / 3 * Finv(j, i)) +
+                   a * ((i == k && j == b ? 1.0 : 0.0) - 2.0 / 3.0 * F(k, b) * Finv(j, i) + I1 / 3 * Finv(j, k) * Finv(b, i)));
+    return true;
+  }
+  /// U = kappa/2 (J - 1)^2 = (J - 1)^2 / D1.
+  bool volumetric(Scalar J, Scalar& U, Scalar& dU, Scalar& ddU) const {
+    U = 0.5 * kappa * (J - 1) * (J - 1), dU = kappa * (J - 1), ddU = kappa;
     return true;
   }
 };
 
 struct StableNeoHookeanEnergy {
   static constexpr const char* name = "StableNeoHookean";
+  static constexpr const char* mean_dilatation_name = "StableNeoHookeanMeanDilatation";
   Scalar mu, lambda, alpha;  ///< the reparametrised mu', lambda' and the rest offset alpha
   Scalar psi_rest;           ///< psi(I), subtracted so that the rest state has zero energy
   explicit StableNeoHookeanEnergy(const Material& m)
@@ -122,28 +149,21 @@ struct StableNeoHookeanEnergy {
                             m.poisson);
   }
 
-  bool evaluate(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
-    const Scalar I1 = F.squaredNorm(), J = F.determinant();
-    const Mat3 cof = detail::cofactor(F);
-    psi = 0.5 * mu * (I1 - 3) + 0.5 * lambda * (J - alpha) * (J - alpha) - 0.5 * mu * std::log(I1 + 1) - psi_rest;
+  /// psi_dev = mu'/2 (I1 - 3) - mu'/2 ln(I1 + 1) - psi(I): defined for every F.
+  bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
+    const Scalar I1 = F.squaredNorm();
+    psi = 0.5 * mu * (I1 - 3) - 0.5 * mu * std::log(I1 + 1) - psi_rest;
     const Scalar s = mu * (1 - 1 / (I1 + 1));
-    P = s * F + lambda * (J - alpha) * cof;
+    P = s * F;
     if (A) {
-      const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> f(F.data()), c(cof.data());
-      *A = s * Matrix9::Identity() + (2 * mu / ((I1 + 1) * (I1 + 1))) * f * f.transpose() +
-           lambda * c * c.transpose();
-      // + lambda (J - alpha) d(cof)/dF, with d(cof_ij)/dF_kl = sum_mn e_ikm e_jln F_mn.
-      const Scalar g = lambda * (J - alpha);
-      auto eps = [](int p, int q, int r) { return static_cast<Scalar>((p - q) * (q - r) * (r - p)) / 2; };
-      for (int l = 0; l < 3; ++l)
-        for (int k = 0; k < 3; ++k)
-          for (int j = 0; j < 3; ++j)
-            for (int i = 0; i < 3; ++i) {
-              if (i == k || j == l) continue;
-              const int m = 3 - i - k, n = 3 - j - l;
-              (*A)(i + 3 * j, k + 3 * l) += g * eps(i, k, m) * eps(j, l, n) * F(m, n);
-            }
+      const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> f(F.data());
+      *A = s * Matrix9::Identity() + (2 * mu / ((I1 + 1) * (I1 + 1))) * f * f.transpose();
     }
+    return true;
+  }
+  /// U = lambda'/2 (J - alpha)^2: defined for J <= 0 too, pushing inverted elements back.
+  bool volumetric(Scalar J, Scalar& U, Scalar& dU, Scalar& ddU) const {
+    U = 0.5 * lambda * (J - alpha) * (J - alpha), dU = lambda * (J - alpha), ddU = lambda;
     return true;
   }
 };
@@ -153,13 +173,22 @@ struct HyperelasticData {
   ElementNodes<E> X0;
   QuadraturePoints<E> points;
   ShapeGradients<E> G_centre;
+  Scalar volume;  ///< rest volume, sum_q dv_q
 };
 
 /// An ElasticModel from a per-point energy (see the file comment for the formulas).
-template <class Energy>
+/// Volumetric::MeanDilatation evaluates the volumetric energy once per element at the mean
+/// dilatation Jbar = (1/V) sum_q dv_q J_q (Nagtegaal, Parks and Rice 1974; the finite-strain
+/// form of B-bar, equivalent to Q1/P0 on Hex8), which removes volumetric locking near
+/// nu = 0.5:
+///   W = sum_q dv_q psi_dev(F_q) + V U(Jbar),   dJbar/dx_a = (1/V) sum_q dv_q cof(F_q) g_qa
+///   f_a = sum_q dv_q [P_dev(F_q) + U'(Jbar) cof(F_q)] g_qa
+///   K = sum_q dv_q [A_dev + U'(Jbar) d(cof)/dF]_q : g g + V U''(Jbar) (dJbar/dx)(dJbar/dx)^T
+template <class Energy, Volumetric V = Volumetric::Full>
 struct Hyperelastic {
-  static constexpr const char* name = Energy::name;
+  static constexpr const char* name = V == Volumetric::Full ? Energy::name : Energy::mean_dilatation_name;
   static constexpr bool constant_tangent = false;
+  static constexpr Volumetric volumetric = V;
 
   template <FiniteElement E>
   struct ElementData : HyperelasticData<E> {
@@ -168,8 +197,15 @@ struct Hyperelastic {
 
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
-    return {{X0, prepare_points<E>(X0), physical_gradient<E>(X0, reference_centre<E>())}, Energy(m)};
+    ElementData<E> d{{X0, prepare_points<E>(X0), physical_gradient<E>(X0, reference_centre<E>()), 0}, Energy(m)};
+    for (Scalar dv : d.points.dv) d.volume += dv;
+    return d;
   }
+
+  /// Projected: A clamped to positive semi-definite per point (what the solver falls back
+  /// to); Exact: the true Jacobian of the force (indefinite under compression, e.g. for ln J
+  /// Neo-Hookean when J < 1 in rotational directions).
+  enum class TangentKind { Projected, Exact };
 
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
@@ -177,34 +213,56 @@ struct Hyperelastic {
     return evaluate<E>(d, x, f, K, TangentKind::Projected);
   }
 
-  /// Projected: A clamped to positive semi-definite per point (what the solver uses);
-  /// Exact: the true Jacobian of the force (indefinite under compression, e.g. for ln J
-  /// Neo-Hookean when J < 1 in rotational directions).
-  enum class TangentKind { Projected, Exact };
-
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
                          TangentKind tangent) {
-    constexpr int N = E::num_nodes;
+    constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
+    constexpr Scalar inf = std::numeric_limits<Scalar>::infinity();
     Eigen::Map<ElementNodes<E>> fm(f.data());
     fm.setZero();
     if (K) K->setZero();
-    Scalar W = 0;
+    auto invalid = [&] {
+      f.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
+      return inf;
+    };
+    // Volumetric state: at each point (Full) or once at the mean dilatation.
+    std::array<Mat3, Q> F, cof;
+    Scalar Jbar = 0;
+    for (int q = 0; q < Q; ++q) {
+      F[q] = x * d.points.G[q];
+      cof[q] = detail::cofactor(F[q]);
+      Jbar += d.points.dv[q] * F[q].determinant();
+    }
+    Jbar /= d.volume;
+    Scalar U = 0, dU = 0, ddU = 0, W = 0;
+    if constexpr (V == Volumetric::MeanDilatation) {
+      if (!d.energy.volumetric(Jbar, U, dU, ddU)) return invalid();
+      W += d.volume * U;
+    }
     Matrix9 A;
     Eigen::Matrix<Scalar, 9, 3 * N> T;  // T(ij, 3b + k) = sum_l A_ijkl g_b[l]
-    for (int q = 0; q < d.points.size; ++q) {
+    ElementVector<E> dJbar = ElementVector<E>::Zero();
+    for (int q = 0; q < Q; ++q) {
       const ShapeGradients<E>& G = d.points.G[q];
       const Scalar dv = d.points.dv[q];
-      const Mat3 F = x * G;
       Scalar psi;
       Mat3 P;
-      if (!d.energy.evaluate(F, psi, P, K ? &A : nullptr)) {
-        f.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
-        return std::numeric_limits<Scalar>::infinity();
+      if (!d.energy.deviatoric(F[q], psi, P, K ? &A : nullptr)) return invalid();
+      if constexpr (V == Volumetric::Full) {
+        if (!d.energy.volumetric(F[q].determinant(), U, dU, ddU)) return invalid();
+        psi += U;
+        if (K) {
+          const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> c(cof[q].data());
+          A.noalias() += ddU * c * c.transpose();
+        }
+      } else if (K) {
+        Eigen::Map<ElementNodes<E>>(dJbar.data()).noalias() += (dv / d.volume) * cof[q] * G.transpose();
       }
+      P += dU * cof[q];
       W += dv * psi;
       fm.noalias() += (dv * P) * G.transpose();
       if (K) {
+        detail::add_cofactor_derivative(A, F[q], dU);
         if (tangent == TangentKind::Projected) detail::project_psd(A);
         for (int b = 0; b < N; ++b)
           for (int k = 0; k < 3; ++k)
@@ -215,16 +273,24 @@ struct Hyperelastic {
                     G(a, 2) * T.template bottomRows<3>());
       }
     }
+    if constexpr (V == Volumetric::MeanDilatation)
+      if (K) {
+        // V U'' b b^T: positive semi-definite wherever U'' >= 0 (all three energies near J = 1).
+        const Scalar c = d.volume * (tangent == TangentKind::Projected ? std::max(ddU, 0.0) : ddU);
+        K->noalias() += c * dJbar * dJbar.transpose();
+      }
     return W;
   }
 
-  /// Cauchy stress at the element centre: sigma = P F^T / J.
+  /// Cauchy stress at the element centre: sigma = P F^T / J (volumetric part at the centre J).
   template <FiniteElement E>
   static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material&) {
     const Mat3 F = x * d.G_centre;
-    Scalar psi;
+    Scalar psi, U, dU, ddU;
     Mat3 P;
-    if (!d.energy.evaluate(F, psi, P, nullptr)) return Mat3::Constant(std::numeric_limits<Scalar>::quiet_NaN());
+    if (!d.energy.deviatoric(F, psi, P, nullptr) || !d.energy.volumetric(F.determinant(), U, dU, ddU))
+      return Mat3::Constant(std::numeric_limits<Scalar>::quiet_NaN());
+    P += dU * detail::cofactor(F);
     return P * F.transpose() / F.determinant();
   }
 };
@@ -232,5 +298,8 @@ struct Hyperelastic {
 using NeoHookean = Hyperelastic<NeoHookeanEnergy>;
 using NeoHookeanAbaqus = Hyperelastic<NeoHookeanAbaqusEnergy>;
 using StableNeoHookean = Hyperelastic<StableNeoHookeanEnergy>;
+using NeoHookeanMeanDilatation = Hyperelastic<NeoHookeanEnergy, Volumetric::MeanDilatation>;
+using NeoHookeanAbaqusMeanDilatation = Hyperelastic<NeoHookeanAbaqusEnergy, Volumetric::MeanDilatation>;
+using StableNeoHookeanMeanDilatation = Hyperelastic<StableNeoHookeanEnergy, Volumetric::MeanDilatation>;
 
 }  // namespace plastifem

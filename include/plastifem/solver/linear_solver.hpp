@@ -50,17 +50,29 @@ class LinearSolver {
   /// Solves A x = b; x holds the initial guess on entry (CG warm start). A is symmetric with
   /// constrained rows and columns replaced by identity rows.
   /// `tolerance` > 0 overrides the CG tolerance for this solve (inexact Newton).
-  LinearSolveReport solve(const SparseMatrix& A, const Vector& b, Vector& x, Scalar tolerance = 0) {
-    return settings_.kind == LinearSolverKind::Direct ? solve_direct(A, b, x)
-                                                      : solve_cg(A, b, x, tolerance > 0 ? tolerance : settings_.tolerance);
+  /// `same_matrix`: A is the matrix of the previous solve (e.g. a linear model at a fixed time
+  /// step), so the direct solver reuses its numeric factorisation too.
+  LinearSolveReport solve(const SparseMatrix& A, const Vector& b, Vector& x, Scalar tolerance = 0,
+                          bool same_matrix = false) {
+    return settings_.kind == LinearSolverKind::Direct
+               ? solve_direct(A, b, x, same_matrix)
+               : solve_cg(A, b, x, tolerance > 0 ? tolerance : settings_.tolerance);
   }
 
  private:
-  LinearSolveReport solve_direct(const SparseMatrix& A, const Vector& b, Vector& x) {
+  LinearSolveReport solve_direct(const SparseMatrix& A, const Vector& b, Vector& x, bool same_matrix) {
     if (!analysed_) {
       ldlt_.analyzePattern(A);
       analysed_ = true;
+      factorised_ = false;
     }
+    if (same_matrix && factorised_) {
+      x = ldlt_.solve(b);
+      LinearSolveReport r;
+      r.iterations = 0;  // no factorisation, one pair of triangular solves
+      return r;
+    }
+    factorised_ = false;
     ldlt_.factorize(A);
     // A zero or sign-changed pivot means the system is singular or indefinite (e.g. a body
     // that is free to move rigidly in a static solve).
@@ -70,6 +82,7 @@ class LinearSolver {
       fail<SolverError>("the system matrix is singular or indefinite (smallest LDLT pivot {:.3g}, largest {:.3g}): "
                         "check that boundary conditions prevent rigid-body motion",
                         D.minCoeff(), dmax);
+    factorised_ = true;
     x = ldlt_.solve(b);
     LinearSolveReport r;
     r.iterations = 1;
@@ -124,7 +137,7 @@ class LinearSolver {
 
   LinearSolverSettings settings_;
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt_;
-  bool analysed_ = false;
+  bool analysed_ = false, factorised_ = false;
   Vector r_, z_, p_, q_, inv_diag_;
 };
 

@@ -115,6 +115,7 @@ class Solver {
     linear_.set_settings(s.linear);
     static_linear_.set_settings(s.static_linear);
     build_mass();
+    system_coefficients_ = {0.0, 0.0};
   }
 
   /// Fixes the given nodes (all components, or those in `mask`).
@@ -128,6 +129,7 @@ class Solver {
       for (int d = 0; d < 3; ++d)
         if (mask[d]) constrained_[3 * i + d] = 1;
     initial_acceleration_known_ = false;
+    system_coefficients_ = {0.0, 0.0};  // the constrained rows of the system change
   }
 
   /// Force `f` on each of the given nodes, scaled by `curve(t)`.
@@ -370,9 +372,14 @@ class Solver {
             else du_.setZero();
             for (Index i = 0; i < num_dofs(); ++i)
               if (constrained_[i]) du_[i] = 0;
-            form_system(mass_coef, stiff_coef);
-            apply_dirichlet(A_, rhs_);
-            return linear_.solve(A_, rhs_, du_, cg_tol);
+            // A linear model at an unchanged time step has the same matrix as last step.
+            const bool same = Elastic::constant_tangent && system_coefficients_ == std::pair{mass_coef, stiff_coef};
+            if (!same) {
+              form_system(mass_coef, stiff_coef);
+              apply_dirichlet(A_, rhs_);
+              system_coefficients_ = Elastic::constant_tangent ? std::pair{mass_coef, stiff_coef} : std::pair{0.0, 0.0};
+            }
+            return linear_.solve(A_, rhs_, du_, cg_tol, same);
           },
           [&] { assemble(u_try_, f_int_, &K_); });
       if (it == 0) next_first_increment_ = du_;  // committed with the step
@@ -769,6 +776,7 @@ class Solver {
           [&] {
             du_.setZero();
             A_ = K_;
+            system_coefficients_ = {0.0, 0.0};
             apply_dirichlet(A_, rhs_);
             return static_linear_.solve(A_, rhs_, du_);
           },
@@ -822,6 +830,7 @@ class Solver {
       }
     }
     A_ = M_;
+    system_coefficients_ = {0.0, 0.0};
     apply_dirichlet(A_, rhs_);
     LinearSolver direct({LinearSolverKind::Direct});
     a = Vector::Zero(num_dofs());
@@ -839,6 +848,9 @@ class Solver {
   std::vector<char> constrained_;
   SparseMatrix M_, K_, A_;
   bool K_assembled_ = false;
+  /// (mass, stiffness) coefficients of the system matrix in A_ for a constant-tangent model;
+  /// (0, 0): A_ holds something else (it is also used by statics and the initial acceleration).
+  std::pair<Scalar, Scalar> system_coefficients_{0.0, 0.0};
   /// Models with an exact and a projected tangent (hyperelastic): which one assembly uses.
   static constexpr bool has_exact_tangent = requires { Elastic::TangentKind::Exact; };
   bool exact_tangent_ = has_exact_tangent;
