@@ -6,7 +6,8 @@
 // 6..100 (5 warm-up steps, 95 measured), and the tip displacement at t = 1 s is printed so that
 // a fast wrong answer shows. Output: a table on stdout and a CSV.
 //
-//   bench_step [--scenes bar90,bar720,...] [--threads 1,2] [--csv FILE] [--quick]
+//   bench_step [--scenes bar90,bar720,...] [--elements hex8,tet4,tet10] [--threads 1,2] [--csv FILE]
+//              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>
@@ -41,17 +42,9 @@ std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
-std::array<int, 3> scene_size(const std::string& s) {
-  if (s == "bar90") return {10, 3, 3};
-  if (s == "bar720") return {20, 6, 6};
-  if (s == "bar5760") return {40, 12, 12};
-  if (s == "bar46080") return {80, 24, 24};
-  fail<InvalidArgument>("unknown scene '{}'", s);
-}
-
 template <class E, class Model>
 Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind, NewmarkMode mode, int threads) {
-  const auto [nx, ny, nz] = scene_size(scene);
+  const auto [nx, ny, nz] = bar_scene_cells(scene);
   SolverSettings st;
   st.linear = {kind, 1e-6, 1000};  // CG to 1e-6 relative, warm-started (SCENES / issue targets)
   st.newmark.mode = mode;
@@ -87,6 +80,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
 int main(int argc, char** argv) try {
   std::vector<std::string> scenes{"bar90", "bar720"};
   std::vector<int> threads{1, 2};
+  std::vector<std::string> elements{"hex8", "tet4", "tet10"};
   std::string csv = "bench_step.csv";
   bool quick = false;
   for (int i = 1; i < argc; ++i) {
@@ -94,6 +88,7 @@ int main(int argc, char** argv) try {
     if (a == "--quick") quick = true;
     else if (i + 1 < argc && a == "--scenes") scenes = split(argv[++i]);
     else if (i + 1 < argc && a == "--csv") csv = argv[++i];
+    else if (i + 1 < argc && a == "--elements") elements = split(argv[++i]);
     else if (i + 1 < argc && a == "--threads") {
       threads.clear();
       for (const auto& t : split(argv[++i])) threads.push_back(std::stoi(t));
@@ -114,7 +109,7 @@ int main(int argc, char** argv) try {
     std::fflush(stdout);  // progress is visible when the table is redirected to a file
   };
   auto scene_rows = [&]<class E>(const std::string& scene) {
-    const auto [nx, ny, nz] = scene_size(scene);
+    const auto [nx, ny, nz] = bar_scene_cells(scene);
     const auto mesh = bar_mesh<E>(nx, ny, nz);
     // LDLT: the linear model factorises once; nonlinear models refactorise every Newton
     // iteration, which only pays on small scenes.
@@ -137,9 +132,10 @@ int main(int argc, char** argv) try {
     }
   };
   for (const auto& scene : scenes) {
-    scene_rows.operator()<Hex8>(scene);
-    scene_rows.operator()<Tet4>(scene);
-    scene_rows.operator()<Tet10>(scene);
+    auto wanted = [&](const char* e) { return std::find(elements.begin(), elements.end(), e) != elements.end(); };
+    if (wanted("hex8")) scene_rows.operator()<Hex8>(scene);
+    if (wanted("tet4")) scene_rows.operator()<Tet4>(scene);
+    if (wanted("tet10")) scene_rows.operator()<Tet10>(scene);
   }
   fmt::print("CSV written to {}\n", csv);
   return 0;

@@ -18,19 +18,11 @@ using namespace plastifem;
 
 namespace {
 
-template <class E>
-Mesh<E> refined_bar(int r) {
-  const BoxSpec b{10 * r, 3 * r, 3 * r, Vec3(10, 3, 3)};
-  if constexpr (std::is_same_v<E, Hex8>) return box_hex8(b);
-  else if constexpr (std::is_same_v<E, Tet4>) return box_tet4_kuhn(b);
-  else return promote_to_tet10(box_tet4_kuhn(b));
-}
-
 template <class E, class Model>
 void study(Scalar nu, int levels, Scalar exact) {
   Scalar previous = 0;
   for (int r = 1; r <= levels; ++r) {
-    const auto mesh = refined_bar<E>(r);
+    const auto mesh = bar_mesh<E>(BoxSpec{10 * r, 3 * r, 3 * r, Vec3(10, 3, 3)});
     Solver<E, Model> s(mesh, Material{3000, nu, 1.0});
     s.fix(mesh.node_set("xmin"));
     s.add_gravity(Vec3(0, 0, -9.81));

@@ -49,17 +49,9 @@ Options parse(int argc, char** argv) {
   return o;
 }
 
-std::array<int, 3> scene_size(const std::string& s) {
-  if (s == "bar90") return {10, 3, 3};
-  if (s == "bar720") return {20, 6, 6};
-  if (s == "bar5760") return {40, 12, 12};
-  if (s == "bar46080") return {80, 24, 24};
-  fail<InvalidArgument>("unknown scene '{}': bar90, bar720, bar5760 or bar46080", s);
-}
-
 template <class E, class Model>
 void run(const Options& o) {
-  const auto [nx, ny, nz] = scene_size(o.scene);
+  const auto [nx, ny, nz] = bar_scene_cells(o.scene);
   const auto mesh = bar_mesh<E>(nx, ny, nz);
   SolverSettings settings;  // Newmark 1/4, 1/2; warm-started Jacobi CG to 1e-8
   settings.newmark.mode = o.mode == "realtime" ? NewmarkMode::RealTime : NewmarkMode::Accurate;

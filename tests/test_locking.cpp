@@ -18,18 +18,10 @@ using namespace plastifem;
 
 namespace {
 
-template <class E>
-Mesh<E> bar(int r) {
-  const BoxSpec b{10 * r, 3 * r, 3 * r, Vec3(10, 3, 3)};
-  if constexpr (std::is_same_v<E, Hex8>) return box_hex8(b);
-  else if constexpr (std::is_same_v<E, Tet4>) return box_tet4_kuhn(b);
-  else return promote_to_tet10(box_tet4_kuhn(b));
-}
-
 /// Mean vertical deflection of the free end face under gravity (Linear statics, LDLT).
 template <class E, class M>
 Scalar tip_deflection(int r, Scalar nu) {
-  const Mesh<E> mesh = bar<E>(r);
+  const Mesh<E> mesh = bar_mesh<E>(BoxSpec{10 * r, 3 * r, 3 * r, Vec3(10, 3, 3)});
   Solver<E, M> s(mesh, Material{3000, nu, 1.0});
   s.fix(mesh.node_set("xmin"));
   s.add_gravity(Vec3(0, 0, -9.81));

@@ -99,4 +99,16 @@ inline Quadrature<14> tet_rule_14() {
   return q;
 }
 
+/// Quadrature selection shared by the tetrahedra: the smallest tabulated rule exact for total
+/// degree `Degree`.
+struct TetrahedronQuadrature {
+  template <int Degree>
+  static auto quadrature() {
+    static_assert(Degree >= 0 && Degree <= 5, "tetrahedron rules are tabulated up to degree 5");
+    if constexpr (Degree <= 1) return tet_rule_1();
+    else if constexpr (Degree == 2) return tet_rule_4();
+    else return tet_rule_14();
+  }
+};
+
 }  // namespace plastifem

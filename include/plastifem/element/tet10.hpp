@@ -17,7 +17,7 @@
 
 namespace plastifem {
 
-struct Tet10 {
+struct Tet10 : TetrahedronQuadrature {
   static constexpr const char* name = "Tet10";
   static constexpr int num_nodes = 10;
   static constexpr int num_vertices = 4;
@@ -69,13 +69,6 @@ struct Tet10 {
     return G;
   }
 
-  template <int Degree>
-  static auto quadrature() {
-    static_assert(Degree >= 0 && Degree <= 5, "tetrahedron rules are tabulated up to degree 5");
-    if constexpr (Degree <= 1) return tet_rule_1();
-    else if constexpr (Degree == 2) return tet_rule_4();
-    else return tet_rule_14();
-  }
   /// Full integration: gradients are linear (stiffness degree 2), mass is quadratic^2.
   static constexpr int stiffness_degree = 2, mass_degree = 4;
 };

@@ -20,7 +20,7 @@
 
 namespace plastifem {
 
-struct Tet4 {
+struct Tet4 : TetrahedronQuadrature {
   static constexpr const char* name = "Tet4";
   static constexpr int num_nodes = 4;
   static constexpr int num_vertices = 4;  ///< corner nodes (the first ones)
@@ -56,14 +56,6 @@ struct Tet4 {
     return G;
   }
 
-  /// Smallest tabulated rule exact for total degree `Degree`.
-  template <int Degree>
-  static auto quadrature() {
-    static_assert(Degree >= 0 && Degree <= 5, "tetrahedron rules are tabulated up to degree 5");
-    if constexpr (Degree <= 1) return tet_rule_1();
-    else if constexpr (Degree == 2) return tet_rule_4();
-    else return tet_rule_14();
-  }
   /// Full integration: exact stiffness (constant gradients) and exact consistent mass.
   static constexpr int stiffness_degree = 0, mass_degree = 2;
 };

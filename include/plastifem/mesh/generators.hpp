@@ -10,6 +10,7 @@
 #include <plastifem/mesh/selection.hpp>
 
 #include <numbers>
+#include <string_view>
 #include <unordered_map>
 
 namespace plastifem {
@@ -188,13 +189,27 @@ inline Mesh<Tet10> promote_to_tet10(const Mesh<Tet4>& tet4) {
   return mesh;
 }
 
-/// The bar scenes of SCENES.md: nx x ny x nz unit cubes (Hex8, Kuhn Tet4, or its Tet10).
+/// A box meshed as the bar scenes mesh it: Hex8 grid, Kuhn-split Tet4, or its Tet10.
 template <FiniteElement E>
-Mesh<E> bar_mesh(int nx, int ny, int nz) {
-  const BoxSpec b{nx, ny, nz};
+Mesh<E> bar_mesh(const BoxSpec& b) {
   if constexpr (std::is_same_v<E, Hex8>) return box_hex8(b);
   else if constexpr (std::is_same_v<E, Tet4>) return box_tet4_kuhn(b);
   else return promote_to_tet10(box_tet4_kuhn(b));
+}
+
+/// The bar scenes of SCENES.md: nx x ny x nz unit cubes.
+template <FiniteElement E>
+Mesh<E> bar_mesh(int nx, int ny, int nz) {
+  return bar_mesh<E>(BoxSpec{nx, ny, nz});
+}
+
+/// Cells of a named bar scene of SCENES.md: bar90, bar720, bar5760 or bar46080.
+inline std::array<int, 3> bar_scene_cells(std::string_view name) {
+  if (name == "bar90") return {10, 3, 3};
+  if (name == "bar720") return {20, 6, 6};
+  if (name == "bar5760") return {40, 12, 12};
+  if (name == "bar46080") return {80, 24, 24};
+  fail<InvalidArgument>("unknown bar scene '{}': bar90, bar720, bar5760 or bar46080", name);
 }
 
 /// A quad surface mesh: nodes and quads (4 node ids, counter-clockwise seen from the side the
