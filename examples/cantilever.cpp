@@ -3,7 +3,7 @@
 //
 //   cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10]
 //              [--model corotational|corotational-element|linear|neohookean|stable-neohookean] [--mode accurate|realtime] [--steps N]
-//              [--every K] [--out DIR]
+//              [--load gravity|stretch] [--every K] [--out DIR]
 //
 // Open DIR/cantilever.pvd in ParaView; colour by von_mises, warp by displacement (the points
 // are already written at the deformed positions).
@@ -21,6 +21,7 @@ namespace {
 
 struct Options {
   std::string scene = "bar720", element = "hex8", model = "corotational", mode = "accurate", out = "out";
+  std::string load = "gravity";
   int steps = 200, every = 5;
 };
 
@@ -36,13 +37,14 @@ Options parse(int argc, char** argv) {
     else if (a == "--element") o.element = value();
     else if (a == "--model") o.model = value();
     else if (a == "--mode") o.mode = value();
+    else if (a == "--load") o.load = value();
     else if (a == "--steps") o.steps = std::stoi(value());
     else if (a == "--every") o.every = std::max(1, std::stoi(value()));
     else if (a == "--out") o.out = value();
     else if (a == "--help" || a == "-h") {
       fmt::print("usage: cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10]\n"
                  "                  [--model corotational|corotational-element|linear|neohookean|stable-neohookean] [--mode accurate|realtime] [--steps N]\n"
-                 "                  [--every K] [--out DIR]\n");
+                 "                  [--load gravity|stretch] [--every K] [--out DIR]\n");
       std::exit(0);
     } else fail<InvalidArgument>("unknown option '{}' (try --help)", a);
   }
@@ -57,14 +59,22 @@ void run(const Options& o) {
   settings.newmark.mode = o.mode == "realtime" ? NewmarkMode::RealTime : NewmarkMode::Accurate;
   Solver<E, Model> solver(mesh, Material{3000, 0.45, 1.0}, settings);
   solver.fix(mesh.node_set("xmin"));
-  solver.add_gravity(Vec3(0, 0, -9.81));
+  if (o.load == "gravity") {
+    solver.add_gravity(Vec3(0, 0, -9.81));
+  } else if (o.load == "stretch") {
+    // SCENES.md plastic stretch load: 1000 along +x on the free end face, ramped over 1 s,
+    // held for 1 s, released; here as a uniform traction (consistent nodal loads).
+    solver.add_traction(mesh.face_set("xmax"), Vec3(1000.0 / (ny * nz), 0, 0), ramp_hold_release(1.0, 2.0));
+  } else {
+    fail<InvalidArgument>("unknown load '{}': gravity or stretch", o.load);
+  }
   // Tip: the node at the free end's top far corner.
   Index tip = 0;
   for (Index i : mesh.node_set("xmax"))
     if (mesh.node(i).y() == ny && mesh.node(i).z() == nz) tip = i;
 
-  fmt::print("plastifem cantilever: {} ({} {}), {} nodes, {} elements, {} dofs, {} mode, dt = 0.01\n", o.scene,
-             E::name, Model::name, mesh.num_nodes(), mesh.num_elements(), solver.num_dofs(), o.mode);
+  fmt::print("plastifem cantilever: {} ({} {}), {} load, {} nodes, {} elements, {} dofs, {} mode, dt = 0.01\n",
+             o.scene, E::name, Model::name, o.load, mesh.num_nodes(), mesh.num_elements(), solver.num_dofs(), o.mode);
   io::PvdWriter pvd(o.out, "cantilever", {io::Encoding::appended_raw, "displacement"});
   auto write = [&] {
     pvd.write(solver.time(), mesh,
@@ -79,9 +89,10 @@ void run(const Options& o) {
     total_ms += r.wall_ms;
     if (k % o.every == 0) write();
     if (k % std::max(1, o.steps / 10) == 0 || k == o.steps)
-      fmt::print("  t = {:5.2f} s  tip uz = {:8.4f}  Newton {:2d}  CG {:4d}  |r|/|f| = {:.1e}  {:6.2f} ms/step  "
+      fmt::print("  t = {:5.2f} s  tip u = ({:7.4f}, {:7.4f})  Newton {:2d}  CG {:4d}  |r|/|f| = {:.1e}  {:6.2f} ms/step  "
                  "kinetic {:.4g}\n",
-                 solver.time(), solver.displacement(tip).z(), r.newton_iterations, r.linear_iterations,
+                 solver.time(), solver.displacement(tip).x(), solver.displacement(tip).z(), r.newton_iterations,
+                 r.linear_iterations,
                  r.relative_residual, r.wall_ms, solver.kinetic_energy());
   }
   fmt::print("done: {} steps, mean {:.2f} ms/step; volume {:.4f} (rest {}); series in {}\n", o.steps,
