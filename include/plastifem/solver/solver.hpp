@@ -469,16 +469,12 @@ class Solver {
     external_force(time_, fe);
     symmetric_multiply(M_, a_, r);
     r += f - fe;
-    if (settings_.rayleigh_mass != 0 || settings_.rayleigh_stiffness != 0) {
-      Vector mv(num_dofs());
-      symmetric_multiply(M_, v_, mv);
-      r += settings_.rayleigh_mass * mv;
-      if (settings_.rayleigh_stiffness != 0) {
-        SparseMatrix K = assembler_.pattern();
-        assemble_tangent(u_, K);
-        symmetric_multiply(K, v_, mv);
-        r += settings_.rayleigh_stiffness * mv;
-      }
+    if (settings_.rayleigh_stiffness != 0) {
+      SparseMatrix K = assembler_.pattern();
+      assemble_tangent(u_, K);
+      add_damping_force(K, v_, 1.0, r);
+    } else {
+      add_damping_force(M_, v_, 1.0, r);  // K unused without stiffness damping
     }
     for (Index i = 0; i < num_dofs(); ++i)
       if (!constrained_[i]) r[i] = 0;
@@ -706,13 +702,18 @@ class Solver {
     v_try_ = v_ + dt * ((1 - nm.gamma) * a_start_ + nm.gamma * a_try_);
     symmetric_multiply(M_, a_try_, r_);
     r_ += f_int_ - f_ext_;
-    if (settings_.rayleigh_mass != 0 || settings_.rayleigh_stiffness != 0) {
-      symmetric_multiply(M_, v_try_, work_);
-      r_ += settings_.rayleigh_mass * work_;
-      if (settings_.rayleigh_stiffness != 0) {
-        symmetric_multiply(K_, v_try_, work_);
-        r_ += settings_.rayleigh_stiffness * work_;
-      }
+    add_damping_force(K_, v_try_, 1.0, r_);
+  }
+
+  /// out += sign D v with D = alpha M + beta K (Rayleigh); K is read only when beta != 0.
+  void add_damping_force(const SparseMatrix& K, const Vector& v, Scalar sign, Vector& out) const {
+    if (settings_.rayleigh_mass != 0) {
+      symmetric_multiply(M_, v, work_);
+      out += (sign * settings_.rayleigh_mass) * work_;
+    }
+    if (settings_.rayleigh_stiffness != 0) {
+      symmetric_multiply(K, v, work_);
+      out += (sign * settings_.rayleigh_stiffness) * work_;
     }
   }
 
@@ -829,15 +830,8 @@ class Solver {
     external_force(time_, f_ext_);
     internal_force(u_, f_int_);
     rhs_ = f_ext_ - f_int_;
-    if (settings_.rayleigh_mass != 0 || settings_.rayleigh_stiffness != 0) {
-      symmetric_multiply(M_, v_, work_);
-      rhs_ -= settings_.rayleigh_mass * work_;
-      if (settings_.rayleigh_stiffness != 0) {
-        assemble_tangent(u_, K_);
-        symmetric_multiply(K_, v_, work_);
-        rhs_ -= settings_.rayleigh_stiffness * work_;
-      }
-    }
+    if (settings_.rayleigh_stiffness != 0) assemble_tangent(u_, K_);
+    add_damping_force(K_, v_, -1.0, rhs_);
     A_ = M_;
     system_coefficients_ = {0.0, 0.0};
     apply_dirichlet(A_, rhs_);
