@@ -141,13 +141,16 @@ struct Corotational {
       }
     }
     if (K) {
-      const ElementMatrix<E> M = Hs * Hs.transpose();
+      // Blocks a >= b from small fixed-size products M_ab = Hs_a Hs_b^T (3 x Q times Q x 3),
+      // the others by symmetry: half the work of the full 3N x 3N product, and no general
+      // matrix-product dispatch (which costs more than the arithmetic at these sizes).
       for (int b = 0; b < N; ++b)
-        for (int a = 0; a < N; ++a) {
-          auto Kab = K->template block<3, 3>(3 * a, 3 * b);
-          Kab.noalias() = d.lambda * M.template block<3, 3>(3 * a, 3 * b) +
-                          d.mu * M.template block<3, 3>(3 * a, 3 * b).transpose();
+        for (int a = b; a < N; ++a) {
+          const Mat3 M = Hs.template middleRows<3>(3 * a).lazyProduct(Hs.template middleRows<3>(3 * b).transpose());
+          Mat3 Kab = d.lambda * M + d.mu * M.transpose();
           Kab.diagonal().array() += d.mu * d.L(a, b);
+          K->template block<3, 3>(3 * a, 3 * b) = Kab;
+          if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
         }
     }
     return W;

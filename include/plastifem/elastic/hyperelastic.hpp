@@ -22,6 +22,7 @@
 // An energy whose domain excludes F (J <= 0 for the ln J and Abaqus forms) makes evaluate()
 // return an infinite energy and NaN forces: the solver's line search then rejects the step
 // that would invert an element, and a state that is already inverted gives a clear error.
+#include <plastifem/core/polar.hpp>
 #include <plastifem/elastic/small_strain.hpp>
 
 #include <Eigen/Cholesky>
@@ -33,15 +34,6 @@ namespace plastifem {
 using Matrix9 = Eigen::Matrix<Scalar, 9, 9>;  // index (i, j) of F_ij -> i + 3 j (column-major)
 
 namespace detail {
-
-/// The cofactor matrix dJ/dF = J F^{-T}, defined for every F: columns f1 x f2, f2 x f0, f0 x f1.
-inline Mat3 cofactor(const Mat3& F) {
-  Mat3 C;
-  C.col(0) = F.col(1).cross(F.col(2));
-  C.col(1) = F.col(2).cross(F.col(0));
-  C.col(2) = F.col(0).cross(F.col(1));
-  return C;
-}
 
 /// A += scale d(cof F)/dF, with d(cof_ij)/dF_kl = sum_mn e_ikm e_jln F_mn (the Hessian of J).
 inline void add_cofactor_derivative(Matrix9& A, const Mat3& F, Scalar scale) {
@@ -216,6 +208,8 @@ struct Hyperelastic {
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
                          TangentKind tangent) {
+    if constexpr (std::is_same_v<Energy, NeoHookeanEnergy> && V == Volumetric::Full)
+      if (!K || tangent == TangentKind::Exact) return evaluate_neo_hookean<E>(d, x, f, K);
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     constexpr Scalar inf = std::numeric_limits<Scalar>::infinity();
     Eigen::Map<ElementNodes<E>> fm(f.data());
@@ -279,6 +273,61 @@ struct Hyperelastic {
         const Scalar c = d.volume * (tangent == TangentKind::Projected ? std::max(ddU, 0.0) : ddU);
         K->noalias() += c * dJbar * dJbar.transpose();
       }
+    return W;
+  }
+
+  /// The ln J Neo-Hookean in closed form (the generic path contracts a 9x9 A per point). With
+  /// h_a = F^{-T} g_a, P = mu (F - F^{-T}) + lambda ln J F^{-T}, and the exact tangent
+  ///   K_ab = sum_q dv_q [mu (g_a . g_b) I + lambda h_a h_b^T + (mu - lambda ln J) h_b h_a^T]
+  /// (from A = mu I + mu Finv^T (x) Finv + U'' cof (x) cof + U' d(cof)/dF with
+  /// d(cof)_ij/dF_kl = J (Finv_ji Finv_lk - Finv_li Finv_jk), U' J = lambda ln J and
+  /// U'' J^2 + U' J = lambda): the corotational kernel's shape, one rotation-free part and two
+  /// rank-Q products per block, about a quarter of the generic cost on Hex8.
+  template <FiniteElement E>
+  static Scalar evaluate_neo_hookean(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
+                                     ElementMatrix<E>* K) {
+    constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
+    const Scalar mu = d.energy.mu, lambda = d.energy.lambda;
+    Eigen::Map<ElementNodes<E>> fm(f.data());
+    fm.setZero();
+    Eigen::Matrix<Scalar, 3 * N, Q> H, Hd, Hc;  // h_qa, dv_q h_qa, dv_q (mu - lambda ln J_q) h_qa
+    Eigen::Matrix<Scalar, N, 3 * Q> Gs, Gd;     // g_qa and dv_q g_qa, point by point
+    Scalar W = 0;
+    for (int q = 0; q < Q; ++q) {
+      const ShapeGradients<E>& G = d.points.G[q];
+      const Scalar dv = d.points.dv[q];
+      const Mat3 F = x * G;
+      const Scalar J = F.determinant();
+      if (!(J > 0)) {
+        f.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
+        return std::numeric_limits<Scalar>::infinity();
+      }
+      const Scalar lnJ = std::log(J);
+      const Mat3 FinvT = detail::cofactor(F) / J;
+      W += dv * (0.5 * mu * (F.squaredNorm() - 3) - mu * lnJ + 0.5 * lambda * lnJ * lnJ);
+      const Mat3 P = mu * F + (lambda * lnJ - mu) * FinvT;
+      fm.noalias() += (dv * P) * G.transpose();
+      if (K) {
+        Eigen::Map<Eigen::Matrix<Scalar, 3, N>> h(H.col(q).data());
+        h.noalias() = FinvT * G.transpose();
+        Hd.col(q) = dv * H.col(q);
+        Hc.col(q) = (dv * (mu - lambda * lnJ)) * H.col(q);
+        Gs.template middleCols<3>(3 * q) = G;
+        Gd.template middleCols<3>(3 * q) = dv * G;
+      }
+    }
+    if (K) {
+      const Eigen::Matrix<Scalar, N, N> L = Gd.lazyProduct(Gs.transpose());  // sum_q dv g_a . g_b
+      for (int b = 0; b < N; ++b)
+        for (int a = b; a < N; ++a) {
+          const auto Hb = H.template middleRows<3>(3 * b).transpose();
+          Mat3 Kab = lambda * Hd.template middleRows<3>(3 * a).lazyProduct(Hb) +
+                     Hc.template middleRows<3>(3 * a).lazyProduct(Hb).transpose();
+          Kab.diagonal().array() += mu * L(a, b);
+          K->template block<3, 3>(3 * a, 3 * b) = Kab;
+          if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
+        }
+    }
     return W;
   }
 
