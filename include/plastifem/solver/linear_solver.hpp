@@ -3,7 +3,7 @@
 // done once (statics, linear models, very large time steps), and Jacobi-preconditioned
 // conjugate gradients warm-started from the previous solution (the real-time choice: at usual
 // time steps the Newmark matrix is dominated by M / (beta dt^2) and CG needs ~10 iterations).
-#include <plastifem/assembly/assembler.hpp>
+#include <plastifem/assembly/block_matrix.hpp>
 
 #include <Eigen/SparseCholesky>
 
@@ -23,28 +23,15 @@ struct LinearSolveReport {
   bool converged = true;
 };
 
-/// y = A x for a symmetric matrix stored in full (both triangles), CSC = CSR of A^T = A:
-/// row i of y is a dot product over column i, so rows run in parallel without races.
-inline void symmetric_multiply(const SparseMatrix& A, const Vector& x, Vector& y) {
-  const int n = static_cast<int>(A.cols());
-  const int* outer = A.outerIndexPtr();
-  const int* inner = A.innerIndexPtr();
-  const Scalar* val = A.valuePtr();
-#pragma omp parallel for schedule(static) if (n > 20000)
-  for (int i = 0; i < n; ++i) {
-    Scalar s = 0;
-    for (int k = outer[i]; k < outer[i + 1]; ++k) s += val[k] * x[inner[k]];
-    y[i] = s;
-  }
-}
-
 class LinearSolver {
  public:
   explicit LinearSolver(LinearSolverSettings s = {}) : settings_(s) {}
   const LinearSolverSettings& settings() const { return settings_; }
+  int threads() const { return threads_; }
+  void set_threads(int threads) { threads_ = std::max(1, threads); }
   void set_settings(const LinearSolverSettings& s) {
     settings_ = s;
-    analysed_ = false;
+    analysed_ = factorised_ = false;
   }
 
   /// Solves A x = b; x holds the initial guess on entry (CG warm start). A is symmetric with
@@ -52,7 +39,8 @@ class LinearSolver {
   /// `tolerance` > 0 overrides the CG tolerance for this solve (inexact Newton).
   /// `same_matrix`: A is the matrix of the previous solve (e.g. a linear model at a fixed time
   /// step), so the direct solver reuses its numeric factorisation too.
-  LinearSolveReport solve(const SparseMatrix& A, const Vector& b, Vector& x, Scalar tolerance = 0,
+  /// Matrix-vector products use up to threads() threads.
+  LinearSolveReport solve(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance = 0,
                           bool same_matrix = false) {
     return settings_.kind == LinearSolverKind::Direct
                ? solve_direct(A, b, x, same_matrix)
@@ -60,17 +48,19 @@ class LinearSolver {
   }
 
  private:
-  LinearSolveReport solve_direct(const SparseMatrix& A, const Vector& b, Vector& x, bool same_matrix) {
-    if (!analysed_) {
-      ldlt_.analyzePattern(A);
-      analysed_ = true;
-      factorised_ = false;
-    }
+  LinearSolveReport solve_direct(const BlockSymmetricMatrix& block, const Vector& b, Vector& x, bool same_matrix) {
     if (same_matrix && factorised_) {
       x = ldlt_.solve(b);
       LinearSolveReport r;
       r.iterations = 0;  // no factorisation, one pair of triangular solves
       return r;
+    }
+    block.copy_to(csc_);  // Eigen's LDLT reads a CSC matrix (its lower triangle)
+    const SparseMatrix& A = csc_;
+    if (!analysed_) {
+      ldlt_.analyzePattern(A);
+      analysed_ = true;
+      factorised_ = false;
     }
     factorised_ = false;
     ldlt_.factorize(A);
@@ -89,7 +79,7 @@ class LinearSolver {
     return r;
   }
 
-  LinearSolveReport solve_cg(const SparseMatrix& A, const Vector& b, Vector& x, Scalar tolerance) {
+  LinearSolveReport solve_cg(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance) {
     const Index n = static_cast<Index>(b.size());
     if (r_.size() != n) {
       r_.resize(n), z_.resize(n), p_.resize(n), q_.resize(n), inv_diag_.resize(n);
@@ -107,7 +97,7 @@ class LinearSolver {
       x.setZero();
       return rep;
     }
-    symmetric_multiply(A, x, q_);
+    A.multiply(x, q_, threads_);
     r_ = b - q_;
     z_ = inv_diag_.cwiseProduct(r_);
     p_ = z_;
@@ -116,7 +106,7 @@ class LinearSolver {
     Scalar rnorm = r_.norm();
     int k = 0;
     while (rnorm > target && k < settings_.max_iterations) {
-      symmetric_multiply(A, p_, q_);
+      A.multiply(p_, q_, threads_);
       const Scalar pq = p_.dot(q_);
       if (!(pq > 0)) fail<SolverError>("CG breakdown (p.Ap = {:.3g}): the system is not positive definite", pq);
       const Scalar alpha = rz / pq;
@@ -137,7 +127,9 @@ class LinearSolver {
 
   LinearSolverSettings settings_;
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt_;
+  SparseMatrix csc_;
   bool analysed_ = false, factorised_ = false;
+  int threads_ = 1;
   Vector r_, z_, p_, q_, inv_diag_;
 };
 

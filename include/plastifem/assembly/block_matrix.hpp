@@ -1,0 +1,250 @@
+#pragma once
+// BlockSymmetricMatrix: the storage of every system matrix (stiffness, mass, Newmark system).
+//
+// The matrices of a 3-dof-per-node FE model are symmetric and made of 3x3 blocks, one per pair
+// of nodes that share an element. Only the lower triangle of blocks is stored (block (I, J),
+// J <= I, the diagonal block whole), by block rows, each block row-major:
+//   value of entry (3 I + i, 3 J + j) = values[9 k + 3 i + j],  k = the block's index.
+// Against Eigen's general CSC with both triangles (12 bytes per scalar nonzero) this streams
+// 72 + 4 bytes per stored block instead of 2 x 9 x 12: 2.8x fewer bytes, and a step is
+// memory-bound from a few thousand elements up (DESIGN.md, "What the hardware says").
+//
+// y = A x visits each stored block once: y_I += B x_J and, off the diagonal, y_J += B^T x_I.
+// With threads, block rows are split into ranges of equal block counts; contributions a thread
+// makes to rows of an earlier range go to its own buffer, summed after a barrier, so the
+// product is race-free, deterministic and allocation-free after the first call.
+#include <plastifem/core/error.hpp>
+
+#include <Eigen/SparseCore>
+#include <algorithm>
+#include <memory>
+#include <vector>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace plastifem {
+
+using SparseMatrix = Eigen::SparseMatrix<Scalar, Eigen::ColMajor, int>;
+using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+
+/// Structure of a BlockSymmetricMatrix, shared by all matrices of one mesh.
+struct BlockPattern {
+  Index num_block_rows = 0;
+  std::vector<int> row_start;  ///< first block of each block row; size num_block_rows + 1
+  std::vector<int> column;     ///< block column J <= I of each block, ascending (diagonal last)
+
+  /// Pattern from, for every node I, the sorted nodes J <= I it is coupled to (I included).
+  static std::shared_ptr<const BlockPattern> from_lower_neighbours(const std::vector<std::vector<Index>>& lower) {
+    auto p = std::make_shared<BlockPattern>();
+    p->num_block_rows = static_cast<Index>(lower.size());
+    p->row_start.assign(lower.size() + 1, 0);
+    for (size_t I = 0; I < lower.size(); ++I) {
+      if (lower[I].empty() || lower[I].back() != static_cast<Index>(I))
+        fail<Error>("block pattern: row {} must end with its diagonal block", I);
+      p->row_start[I + 1] = p->row_start[I] + static_cast<int>(lower[I].size());
+    }
+    p->column.reserve(p->row_start.back());
+    for (const auto& row : lower)
+      for (Index J : row) p->column.push_back(static_cast<int>(J));
+    return p;
+  }
+
+  Index num_blocks() const { return static_cast<Index>(column.size()); }
+
+  /// Index of block (I, J) with J <= I, or -1 if the nodes are not coupled.
+  int block(Index I, Index J) const {
+    const int* begin = column.data() + row_start[I];
+    const int* end = column.data() + row_start[I + 1];
+    const int* it = std::lower_bound(begin, end, static_cast<int>(J));
+    return (it != end && *it == J) ? static_cast<int>(it - column.data()) : -1;
+  }
+};
+
+class BlockSymmetricMatrix {
+ public:
+  BlockSymmetricMatrix() = default;
+  explicit BlockSymmetricMatrix(std::shared_ptr<const BlockPattern> pattern)
+      : pattern_(std::move(pattern)), values_(9 * static_cast<size_t>(pattern_->num_blocks()), 0.0) {}
+
+  Index rows() const { return pattern_ ? 3 * pattern_->num_block_rows : 0; }
+  Index cols() const { return rows(); }
+  const BlockPattern& pattern() const { return *pattern_; }
+  /// Stored scalars (9 per block): same layout for every matrix of one pattern, so linear
+  /// combinations of matrices are one pass over this array.
+  Index num_values() const { return static_cast<Index>(values_.size()); }
+  Scalar* values() { return values_.data(); }
+  const Scalar* values() const { return values_.data(); }
+  void set_zero() { std::fill(values_.begin(), values_.end(), 0.0); }
+
+  /// Entry (row, col) of the full symmetric matrix (zero outside the pattern).
+  Scalar coeff(Index row, Index col) const {
+    if (row / 3 < col / 3) std::swap(row, col);
+    const int k = pattern_->block(row / 3, col / 3);
+    return k < 0 ? 0.0 : values_[9 * static_cast<size_t>(k) + 3 * (row % 3) + col % 3];
+  }
+
+  Vector diagonal() const {
+    Vector d(rows());
+    const auto& p = *pattern_;
+    for (Index I = 0; I < p.num_block_rows; ++I) {
+      const Scalar* B = &values_[9 * static_cast<size_t>(p.row_start[I + 1] - 1)];  // diagonal block: last
+      d.segment<3>(3 * I) << B[0], B[4], B[8];
+    }
+    return d;
+  }
+
+  /// Sum of all entries of the full symmetric matrix.
+  Scalar sum() const {
+    Scalar s = 0;
+    const auto& p = *pattern_;
+    for (Index I = 0; I < p.num_block_rows; ++I)
+      for (int k = p.row_start[I]; k < p.row_start[I + 1]; ++k) {
+        Scalar b = 0;
+        for (int q = 0; q < 9; ++q) b += values_[9 * static_cast<size_t>(k) + q];
+        s += (p.column[k] == I) ? b : 2 * b;
+      }
+    return s;
+  }
+
+  /// y = A x, with up to `threads` threads (1: serial).
+  void multiply(const Vector& x, Vector& y, int threads = 1) const {
+    const auto& p = *pattern_;
+    const Index nb = p.num_block_rows;
+#ifdef _OPENMP
+    // Below ~3000 blocks (bar720: 13k) a thread's start-up costs more than its half of the work.
+    if (threads > 1 && p.num_blocks() > 3000) {
+      prepare_split(threads);
+#pragma omp parallel num_threads(threads)
+      {
+        if (omp_get_num_threads() != threads) {  // fewer threads granted (nested region): serial
+#pragma omp single
+          multiply_rows(0, nb, x.data(), y.data(), nullptr);
+        } else {
+          const int t = omp_get_thread_num();
+          const Index r0 = split_[t], r1 = split_[t + 1];
+          Scalar* z = t == 0 ? nullptr : buffers_[t].data();
+          if (z) std::fill(z, z + 3 * r0, 0.0);
+          multiply_rows(r0, r1, x.data(), y.data(), z);
+#pragma omp barrier
+          // y += the buffered contributions to rows before each thread's range.
+#pragma omp for schedule(static)
+          for (Index i = 0; i < 3 * split_[threads - 1]; ++i) {
+            Scalar s = 0;
+            for (int u = 1; u < threads; ++u)
+              if (i < 3 * split_[u]) s += buffers_[u][i];
+            y[i] += s;
+          }
+        }
+      }
+      return;
+    }
+#endif
+    (void)threads;
+    multiply_rows(0, nb, x.data(), y.data(), nullptr);
+  }
+
+  /// The full symmetric matrix (both triangles) in Eigen's CSC format.
+  SparseMatrix to_sparse() const {
+    SparseMatrix A;
+    copy_to(A);
+    return A;
+  }
+
+  /// A = this matrix in Eigen's CSC format (both triangles). The CSC pattern and the map from
+  /// its entries to the blocks are built on the first call, then only values are copied.
+  void copy_to(SparseMatrix& A) const {
+    build_csc_map();
+    if (A.rows() != rows() || A.nonZeros() != static_cast<Index>(csc_from_.size()) ||
+        !std::equal(csc_outer_.begin(), csc_outer_.end(), A.outerIndexPtr())) {
+      std::vector<Scalar> zeros(csc_inner_.size(), 0.0);
+      A = Eigen::Map<const SparseMatrix>(rows(), cols(), static_cast<Index>(csc_inner_.size()), csc_outer_.data(),
+                                         csc_inner_.data(), zeros.data());
+    }
+    Scalar* v = A.valuePtr();
+    for (size_t k = 0; k < csc_from_.size(); ++k) v[k] = values_[csc_from_[k]];
+  }
+
+ private:
+  void multiply_rows(Index r0, Index r1, const Scalar* x, Scalar* y, Scalar* buffer) const {
+    const auto& p = *pattern_;
+    const int* col = p.column.data();
+    const Scalar* val = values_.data();
+    for (Index I = r0; I < r1; ++I) {
+      const Scalar x0 = x[3 * I], x1 = x[3 * I + 1], x2 = x[3 * I + 2];
+      Scalar s0 = 0, s1 = 0, s2 = 0;
+      const int end = p.row_start[I + 1] - 1;  // the diagonal block is last
+      for (int k = p.row_start[I]; k < end; ++k) {
+        const Scalar* B = val + 9 * static_cast<size_t>(k);
+        const Index J = col[k];
+        const Scalar* xj = x + 3 * J;
+        s0 += B[0] * xj[0] + B[1] * xj[1] + B[2] * xj[2];
+        s1 += B[3] * xj[0] + B[4] * xj[1] + B[5] * xj[2];
+        s2 += B[6] * xj[0] + B[7] * xj[1] + B[8] * xj[2];
+        Scalar* yj = (J >= r0 || !buffer) ? y + 3 * J : buffer + 3 * J;
+        yj[0] += B[0] * x0 + B[3] * x1 + B[6] * x2;
+        yj[1] += B[1] * x0 + B[4] * x1 + B[7] * x2;
+        yj[2] += B[2] * x0 + B[5] * x1 + B[8] * x2;
+      }
+      const Scalar* D = val + 9 * static_cast<size_t>(end);
+      // Row I receives transposed contributions only from later rows: assign, then they add.
+      y[3 * I] = s0 + D[0] * x0 + D[1] * x1 + D[2] * x2;
+      y[3 * I + 1] = s1 + D[3] * x0 + D[4] * x1 + D[5] * x2;
+      y[3 * I + 2] = s2 + D[6] * x0 + D[7] * x1 + D[8] * x2;
+    }
+  }
+
+  void prepare_split(int threads) const {
+    if (static_cast<int>(split_.size()) == threads + 1) return;
+    const auto& p = *pattern_;
+    split_.assign(threads + 1, p.num_block_rows);
+    split_[0] = 0;
+    Index I = 0;
+    for (int t = 1; t < threads; ++t) {
+      const Index target = p.num_blocks() * t / threads;
+      while (I < p.num_block_rows && p.row_start[I] < target) ++I;
+      split_[t] = I;
+    }
+    buffers_.assign(threads, Vector());
+    for (int t = 1; t < threads; ++t) buffers_[t] = Vector::Zero(3 * split_[t]);
+  }
+
+  void build_csc_map() const {
+    if (!csc_outer_.empty()) return;
+    const auto& p = *pattern_;
+    const Index n = rows();
+    // Column c of the full matrix = row c (symmetry): entries from the lower blocks (I, J <= I)
+    // of block row c/3, read transposed, and from the blocks (I > c/3, c/3) below it.
+    std::vector<std::vector<std::pair<int, size_t>>> cols(n);  // (row, value index)
+    for (Index I = 0; I < p.num_block_rows; ++I)
+      for (int k = p.row_start[I]; k < p.row_start[I + 1]; ++k) {
+        const Index J = p.column[k];
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) {
+            const size_t v = 9 * static_cast<size_t>(k) + 3 * i + j;
+            cols[3 * J + j].push_back({static_cast<int>(3 * I + i), v});  // entry (3I+i, 3J+j)
+            if (J != I) cols[3 * I + i].push_back({static_cast<int>(3 * J + j), v});  // its mirror
+          }
+      }
+    csc_outer_.assign(n + 1, 0);
+    for (Index c = 0; c < n; ++c) {
+      std::sort(cols[c].begin(), cols[c].end());
+      csc_outer_[c + 1] = csc_outer_[c] + static_cast<int>(cols[c].size());
+      for (const auto& [r, v] : cols[c]) {
+        csc_inner_.push_back(r);
+        csc_from_.push_back(v);
+      }
+    }
+  }
+
+  std::shared_ptr<const BlockPattern> pattern_;
+  std::vector<Scalar> values_;
+  // Scratch for threaded products and the CSC view, built on first use.
+  mutable std::vector<Index> split_;
+  mutable std::vector<Vector> buffers_;
+  mutable std::vector<int> csc_outer_, csc_inner_;
+  mutable std::vector<size_t> csc_from_;
+};
+
+}  // namespace plastifem

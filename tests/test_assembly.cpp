@@ -1,0 +1,124 @@
+// Polar decomposition, block-symmetric storage and assembly, each against an independent
+// reference: the SVD, a dense matrix assembled entry by entry, and Eigen's sparse product.
+#include "catch.hpp"
+
+#include <plastifem/plastifem.hpp>
+
+#include <fmt/core.h>
+
+#include <random>
+
+using namespace plastifem;
+
+namespace {
+
+Mat3 random_rotation(std::mt19937& rng) {
+  std::normal_distribution<Scalar> n;
+  const Vec3 axis = Vec3(n(rng), n(rng), n(rng)).normalized();
+  return Eigen::AngleAxisd(3 * std::uniform_real_distribution<Scalar>(0, 1)(rng), axis).toRotationMatrix();
+}
+
+}  // namespace
+
+TEST_CASE("polar rotation matches the SVD from tiny to large stretches, and handles inversion", "[polar]") {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<Scalar> u(-1, 1);
+  // Stretch amplitudes from round-off to 100% (singular values ~0.3 to ~2.5).
+  for (Scalar amp : {0.0, 1e-9, 1e-3, 0.05, 0.3, 0.7}) {
+    Scalar worst = 0, worst_sym = 0, worst_orth = 0;
+    for (int k = 0; k < 2000; ++k) {
+      Mat3 D;
+      for (int i = 0; i < 9; ++i) D(i / 3, i % 3) = amp * u(rng);
+      const Mat3 F = random_rotation(rng) * (Mat3::Identity() + D);
+      if (!(F.determinant() > 0.05 * std::pow(F.norm(), 3))) continue;  // well-conditioned branch
+      const Mat3 R = rotation_of(F);
+      Eigen::JacobiSVD<Mat3> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      const Mat3 R_svd = svd.matrixU() * svd.matrixV().transpose();
+      const Mat3 S = R.transpose() * F;
+      worst = std::max(worst, (R - R_svd).norm());
+      worst_sym = std::max(worst_sym, (S - S.transpose()).norm() / F.norm());
+      worst_orth = std::max(worst_orth, (R.transpose() * R - Mat3::Identity()).norm());
+    }
+    fmt::print("polar, stretch amplitude {:g}: |R - R_svd| {:.1e}, asym(R^T F) {:.1e}, |R^T R - I| {:.1e}\n", amp, worst,
+               worst_sym, worst_orth);
+    // Round-off of a few dozen flops on unit-size entries, amplified by the conditioning of
+    // the polar factor (1 / (s_i + s_j) <= ~3 here).
+    CHECK(worst < 1e-13);
+    CHECK(worst_sym < 1e-14);
+    CHECK(worst_orth < 1e-14);
+  }
+  // Inverted (det F < 0): the element is read as compressed through zero along its weakest
+  // direction, not reflected: F = diag(1.2, 0.9, -0.1), rotated, gives back the rotation.
+  const Mat3 Q = Eigen::AngleAxisd(0.8, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  const Mat3 R = rotation_of(Q * Vec3(1.2, 0.9, -0.1).asDiagonal());
+  CHECK(R.determinant() == Approx(1.0));
+  CHECK((R - Q).norm() < 1e-14);
+  // Degenerate and non-finite: identity, no NaN.
+  CHECK(rotation_of(Mat3::Zero()) == Mat3::Identity());
+  CHECK(rotation_of(Mat3::Constant(std::nan(""))) == Mat3::Identity());
+  CHECK(rotation_of(Vec3(1, 1, 0).asDiagonal()).allFinite());
+}
+
+TEST_CASE("block-symmetric matrix: assembly, product, diagonal, sum and CSC copy against dense", "[assembly]") {
+  // A Kuhn Tet4 bar: node numbers are not monotone within elements, so blocks land both as
+  // K_ab and transposed.
+  const auto mesh = bar_mesh<Tet4>(5, 3, 2);
+  const Assembler<Tet4> assembler(mesh);
+  BlockSymmetricMatrix A = assembler.zero_matrix();
+  const Index n = A.rows();
+  Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(n, n);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<Scalar> u(-1, 1);
+  for (Index e = 0; e < mesh.num_elements(); ++e) {
+    Eigen::Matrix<Scalar, 12, 12> Ke;
+    for (int i = 0; i < 144; ++i) Ke(i / 12, i % 12) = u(rng);
+    Ke = (Ke + Ke.transpose()).eval();
+    assembler.add_element_matrix(e, Ke, A.values());
+    const auto& c = mesh.element(e);
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) dense.block<3, 3>(3 * c[a], 3 * c[b]) += Ke.block<3, 3>(3 * a, 3 * b);
+  }
+  Vector x(n);
+  for (Index i = 0; i < n; ++i) x[i] = u(rng);
+  Vector y(n);
+  A.multiply(x, y, 1);
+  const Vector y_dense = dense * x;
+  CHECK((y - y_dense).norm() <= 1e-13 * y_dense.norm());
+  Vector y2(n);
+  A.multiply(x, y2, 2);
+  CHECK((y2 - y_dense).norm() <= 1e-13 * y_dense.norm());
+  CHECK((A.diagonal() - dense.diagonal()).norm() == 0);
+  CHECK(A.sum() == Approx(dense.sum()).epsilon(1e-12));
+  CHECK(A.coeff(7, 2) == dense(7, 2));
+  CHECK(A.coeff(2, 7) == dense(2, 7));
+  const SparseMatrix S = A.to_sparse();
+  CHECK((Eigen::MatrixXd(S) - dense).norm() == 0);
+  // The CSC copy reuses its pattern: after a value change only values move.
+  A.values()[0] += 1;
+  SparseMatrix S2 = S;
+  A.copy_to(S2);
+  CHECK(S2.nonZeros() == S.nonZeros());
+  CHECK((Eigen::MatrixXd(S2) - Eigen::MatrixXd(S)).cwiseAbs().sum() == Approx(1.0));
+}
+
+TEST_CASE("threaded block product equals the serial one to round-off on a large pattern", "[assembly][threads]") {
+  // Above the threading threshold (3000 blocks): bar720-size Hex8.
+  const auto mesh = bar_mesh<Hex8>(20, 6, 6);
+  const Assembler<Hex8> assembler(mesh);
+  BlockSymmetricMatrix A = assembler.zero_matrix();
+  REQUIRE(A.pattern().num_blocks() > 3000);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<Scalar> u(-1, 1);
+  for (Index i = 0; i < A.num_values(); ++i) A.values()[i] = u(rng);
+  for (Index I = 0; I < A.pattern().num_block_rows; ++I) {  // diagonal blocks must be symmetric
+    Scalar* D = A.values() + 9 * static_cast<size_t>(A.pattern().row_start[I + 1] - 1);
+    D[3] = D[1], D[6] = D[2], D[7] = D[5];
+  }
+  Vector x = Vector::NullaryExpr(A.rows(), [&](Index) { return u(rng); });
+  Vector y1(A.rows()), y2(A.rows());
+  A.multiply(x, y1, 1);
+  A.multiply(x, y2, 2);
+  const Vector ref = A.to_sparse() * x;
+  CHECK((y1 - ref).norm() <= 1e-13 * ref.norm());
+  CHECK((y2 - ref).norm() <= 1e-13 * ref.norm());
+}
