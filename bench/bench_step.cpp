@@ -4,9 +4,14 @@
 //
 // Each row runs 100 steps (t = 0 -> 1 s): the median, min and max wall time are over steps
 // 6..100 (5 warm-up steps, 95 measured), and the tip displacement at t = 1 s is printed so that
-// a fast wrong answer shows. Output: a table on stdout and a CSV.
+// a fast wrong answer shows; real-time rows also give their tip's relative difference from the
+// accurate row of the same model. `mem MB` is the heap the row's solver holds after its steps
+// (element data, matrices, vectors, solver scratch; glibc's malloc statistics). Output: a table on stdout, a CSV, and
+// with several scenes a scaling table: ms per step against element count, with the exponent p
+// of a least-squares fit ms ~ elements^p.
 //
 //   bench_step [--scenes bar90,bar720,...] [--elements hex8,tet4,tet10] [--threads 1,2] [--csv FILE]
+//              [--models linear,corotational,corotational-element,neohookean,stable-neohookean]
 //              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
 #include <plastifem/plastifem.hpp>
 
@@ -14,7 +19,13 @@
 #include <fmt/os.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <map>
+
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -30,10 +41,21 @@ namespace {
 struct Row {
   std::string scene, element, model, solver, mode;
   int threads;
-  Index dofs;
+  Index dofs, elements;
+  double rss_mb;
   double median_ms, min_ms, max_ms, newton, linear;
   Scalar tip_uz;
 };
+
+/// Heap memory in use, in MB (glibc's allocator statistics; 0 elsewhere).
+double heap_mb() {
+#if defined(__GLIBC__) && (__GLIBC__ > 2 || (__GLIBC__ == 2 && __GLIBC_MINOR__ >= 33))
+  const struct mallinfo2 m = mallinfo2();
+  return static_cast<double>(m.uordblks + m.hblkhd) / (1024.0 * 1024.0);
+#else
+  return 0;
+#endif
+}
 
 std::vector<std::string> split(const std::string& s) {
   std::vector<std::string> out;
@@ -52,6 +74,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
 #ifdef _OPENMP
   omp_set_num_threads(threads);
 #endif
+  const double heap0 = heap_mb();
   Solver<E, Model> s(mesh, Material{3000, 0.45, 1.0}, st);
   s.fix(mesh.node_set("xmin"));
   s.add_gravity(Vec3(0, 0, -9.81));
@@ -72,7 +95,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   const double n = static_cast<double>(ms.size());
   return {scene, E::name, Model::name,
           kind == LinearSolverKind::Direct ? "LDLT" : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
-          threads, s.num_dofs(), ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
+          threads, s.num_dofs(), mesh.num_elements(), heap_mb() - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
 }
 
 }  // namespace
@@ -81,6 +104,7 @@ int main(int argc, char** argv) try {
   std::vector<std::string> scenes{"bar90", "bar720"};
   std::vector<int> threads{1, 2};
   std::vector<std::string> elements{"hex8", "tet4", "tet10"};
+  std::vector<std::string> models{"linear", "corotational", "corotational-element", "neohookean", "stable-neohookean"};
   std::string csv = "bench_step.csv";
   bool quick = false;
   for (int i = 1; i < argc; ++i) {
@@ -89,25 +113,37 @@ int main(int argc, char** argv) try {
     else if (i + 1 < argc && a == "--scenes") scenes = split(argv[++i]);
     else if (i + 1 < argc && a == "--csv") csv = argv[++i];
     else if (i + 1 < argc && a == "--elements") elements = split(argv[++i]);
+    else if (i + 1 < argc && a == "--models") models = split(argv[++i]);
     else if (i + 1 < argc && a == "--threads") {
       threads.clear();
       for (const auto& t : split(argv[++i])) threads.push_back(std::stoi(t));
     } else fail<InvalidArgument>("unknown option '{}'", a);
   }
   std::ofstream out(csv);
-  out << "scene,element,model,solver,mode,threads,dofs,median_ms,min_ms,max_ms,newton_per_step,linear_per_step,tip_uz_t1\n";
-  fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>10} {:>9} {:>9} {:>7} {:>8} {:>10}\n", "scene", "elem", "model",
-             "solver", "mode", "thr", "dofs", "median ms", "min ms", "max ms", "Newton", "lin.it", "tip uz(1s)");
+  out << "scene,element,model,solver,mode,threads,dofs,elements,memory_mb,median_ms,min_ms,max_ms,newton_per_step,"
+         "linear_per_step,tip_uz_t1,realtime_vs_accurate\n";
+  fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7} {:>10} {:>9} {:>9} {:>7} {:>8} {:>10} {:>9}\n", "scene", "elem",
+             "model", "solver", "mode", "thr", "dofs", "mem MB", "median ms", "min ms", "max ms", "Newton", "lin.it",
+             "tip uz(1s)", "rt error");
+  std::map<std::string, Scalar> accurate_tip;  // scene/element/model/threads -> tip of the accurate CG row
+  std::vector<Row> rows;
   auto emit = [&](const Row& r) {
-    fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>10.3f} {:>9.3f} {:>9.3f} {:>7.2f} {:>8.1f} {:>10.5f}\n", r.scene,
-               r.element, r.model, r.solver, r.mode, r.threads, r.dofs, r.median_ms, r.min_ms, r.max_ms, r.newton,
-               r.linear, r.tip_uz);
-    out << fmt::format("{},{},{},{},{},{},{},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{:.9g}\n", r.scene, r.element, r.model,
-                       r.solver, r.mode, r.threads, r.dofs, r.median_ms, r.min_ms, r.max_ms, r.newton, r.linear,
-                       r.tip_uz);
+    const std::string key = fmt::format("{}/{}/{}/{}", r.scene, r.element, r.model, r.threads);
+    if (r.mode == "accurate" && r.solver != "LDLT") accurate_tip[key] = r.tip_uz;
+    std::string rt_error;
+    if (r.mode == "realtime" && accurate_tip.count(key))
+      rt_error = fmt::format("{:.2e}", std::abs(r.tip_uz - accurate_tip[key]) / std::abs(accurate_tip[key]));
+    fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7.1f} {:>10.3f} {:>9.3f} {:>9.3f} {:>7.2f} {:>8.1f} {:>10.5f} {:>9}\n",
+               r.scene, r.element, r.model, r.solver, r.mode, r.threads, r.dofs, r.rss_mb, r.median_ms, r.min_ms,
+               r.max_ms, r.newton, r.linear, r.tip_uz, rt_error);
+    out << fmt::format("{},{},{},{},{},{},{},{},{:.1f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{:.9g},{}\n", r.scene, r.element,
+                       r.model, r.solver, r.mode, r.threads, r.dofs, r.elements, r.rss_mb, r.median_ms, r.min_ms,
+                       r.max_ms, r.newton, r.linear, r.tip_uz, rt_error);
     out.flush();
     std::fflush(stdout);  // progress is visible when the table is redirected to a file
+    rows.push_back(r);
   };
+  auto want = [&](const char* m) { return std::find(models.begin(), models.end(), m) != models.end(); };
   auto scene_rows = [&]<class E>(const std::string& scene) {
     const auto [nx, ny, nz] = bar_scene_cells(scene);
     const auto mesh = bar_mesh<E>(nx, ny, nz);
@@ -117,18 +153,24 @@ int main(int argc, char** argv) try {
     constexpr auto CG = LinearSolverKind::ConjugateGradient, LDLT = LinearSolverKind::Direct;
     constexpr auto accurate = NewmarkMode::Accurate, realtime = NewmarkMode::RealTime;
     for (int t : threads) {
-      emit(measure<E, Linear>(scene, mesh, CG, accurate, t));
-      emit(measure<E, Linear>(scene, mesh, LDLT, accurate, t));
-      emit(measure<E, Corotational>(scene, mesh, CG, accurate, t));
-      if (!quick) emit(measure<E, Corotational>(scene, mesh, CG, realtime, t));
-      if (direct_ok && !quick) emit(measure<E, Corotational>(scene, mesh, LDLT, accurate, t));
-      if (!std::is_same_v<E, Tet4>) {  // identical to Corotational on Tet4
+      if (want("linear")) {
+        emit(measure<E, Linear>(scene, mesh, CG, accurate, t));
+        emit(measure<E, Linear>(scene, mesh, LDLT, accurate, t));
+      }
+      if (want("corotational")) {
+        emit(measure<E, Corotational>(scene, mesh, CG, accurate, t));
+        if (!quick) emit(measure<E, Corotational>(scene, mesh, CG, realtime, t));
+        if (direct_ok && !quick) emit(measure<E, Corotational>(scene, mesh, LDLT, accurate, t));
+      }
+      if (!std::is_same_v<E, Tet4> && want("corotational-element")) {  // identical to Corotational on Tet4
         emit(measure<E, CorotationalPerElement>(scene, mesh, CG, accurate, t));
         if (!quick) emit(measure<E, CorotationalPerElement>(scene, mesh, CG, realtime, t));
       }
-      emit(measure<E, NeoHookean>(scene, mesh, CG, accurate, t));
-      if (!quick) emit(measure<E, NeoHookean>(scene, mesh, CG, realtime, t));
-      if (!quick) emit(measure<E, StableNeoHookean>(scene, mesh, CG, accurate, t));
+      if (want("neohookean")) {
+        emit(measure<E, NeoHookean>(scene, mesh, CG, accurate, t));
+        if (!quick) emit(measure<E, NeoHookean>(scene, mesh, CG, realtime, t));
+      }
+      if (!quick && want("stable-neohookean")) emit(measure<E, StableNeoHookean>(scene, mesh, CG, accurate, t));
     }
   };
   for (const auto& scene : scenes) {
@@ -136,6 +178,24 @@ int main(int argc, char** argv) try {
     if (wanted("hex8")) scene_rows.operator()<Hex8>(scene);
     if (wanted("tet4")) scene_rows.operator()<Tet4>(scene);
     if (wanted("tet10")) scene_rows.operator()<Tet10>(scene);
+  }
+  // Scaling: the same configuration over several scenes, and the fitted exponent.
+  std::map<std::string, std::vector<const Row*>> series;
+  for (const Row& r : rows) series[fmt::format("{} {} {} {} {}t", r.element, r.model, r.solver, r.mode, r.threads)].push_back(&r);
+  bool header = false;
+  for (const auto& [name, rs] : series) {
+    if (rs.size() < 2) continue;
+    if (!header) fmt::print("\nscaling: median ms per step by element count, fitted exponent p (ms ~ elements^p)\n");
+    header = true;
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    std::string cells;
+    for (const Row* r : rs) {
+      const double lx = std::log(static_cast<double>(r->elements)), ly = std::log(r->median_ms);
+      sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly;
+      cells += fmt::format("  {}: {:.3f}", r->elements, r->median_ms);
+    }
+    const double n = static_cast<double>(rs.size());
+    fmt::print("{:48} p = {:.2f} {}\n", name, (n * sxy - sx * sy) / (n * sxx - sx * sx), cells);
   }
   fmt::print("CSV written to {}\n", csv);
   return 0;
