@@ -62,7 +62,8 @@ struct CorotationalPerElementT {
     constexpr int N = E::num_nodes;
     const Mat3 R = rotation_of(x * d.G_centre);
     const ElementNodes<E> y = R.transpose() * x - d.X0;  // displacement in the rotated frame
-    const ElementVector<E> f0 = d.K0 * as_vector<E>(y);
+    // Coefficient-based product: Eigen's general GEMV dispatch costs more than 24 x 24 flops.
+    const ElementVector<E> f0 = d.K0.lazyProduct(as_vector<E>(y));
     Eigen::Map<ElementNodes<E>>(f.data()) = R * Eigen::Map<const ElementNodes<E>>(f0.data());
     if (K) {
       // K = Rb K0 Rb^T with Rb = blockdiag(R, ..., R), as 2N products of 3N x 3 and 3 x 3N
