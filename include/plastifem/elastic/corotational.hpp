@@ -61,7 +61,8 @@ struct CorotationalPerElementT {
                          ElementMatrix<E>* K) {
     constexpr int N = E::num_nodes;
     const Mat3 R = rotation_of(x * d.G_centre);
-    const ElementNodes<E> y = R.transpose() * x - d.X0;  // displacement in the rotated frame
+    // Displacement in the rotated frame, relative to node 0 (K0 annihilates translations).
+    const ElementNodes<E> y = R.transpose() * relative_to_first_node<E>(x) - d.X0;
     // Coefficient-based product: Eigen's general GEMV dispatch costs more than 24 x 24 flops.
     const ElementVector<E> f0 = d.K0.lazyProduct(as_vector<E>(y));
     Eigen::Map<ElementNodes<E>>(f.data()) = R * Eigen::Map<const ElementNodes<E>>(f0.data());
@@ -87,7 +88,6 @@ using CorotationalMeanDilatation = CorotationalPerElementT<Volumetric::MeanDilat
 
 template <FiniteElement E>
 struct CorotationalData {
-  ElementNodes<E> X0;
   QuadraturePoints<E> points;
   Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;  ///< sum_q dv_q g_qa . g_qb (rotation-free part)
   ShapeGradients<E> G_centre;
@@ -104,7 +104,6 @@ struct Corotational {
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
     ElementData<E> d;
-    d.X0 = X0;
     d.points = prepare_points<E>(X0);
     d.L.setZero();
     for (int k = 0; k < d.points.size; ++k)

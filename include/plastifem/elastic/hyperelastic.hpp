@@ -162,7 +162,6 @@ struct StableNeoHookeanEnergy {
 
 template <FiniteElement E>
 struct HyperelasticData {
-  ElementNodes<E> X0;
   QuadraturePoints<E> points;
   ShapeGradients<E> G_centre;
   Scalar volume;  ///< rest volume, sum_q dv_q
@@ -189,7 +188,7 @@ struct Hyperelastic {
 
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
-    ElementData<E> d{{X0, prepare_points<E>(X0), physical_gradient<E>(X0, reference_centre<E>()), 0}, Energy(m)};
+    ElementData<E> d{{prepare_points<E>(X0), physical_gradient<E>(X0, reference_centre<E>()), 0}, Energy(m)};
     for (Scalar dv : d.points.dv) d.volume += dv;
     return d;
   }

@@ -24,7 +24,10 @@ struct LinearElastic {
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
                          ElementMatrix<E>* K) {
-    const ElementVector<E> u = as_vector<E>(x) - as_vector<E>(d.X0);
+    // u relative to node 0's displacement: K0 annihilates translations, so f and W are those
+    // of x - X0.
+    const ElementNodes<E> xr = relative_to_first_node<E>(x);
+    const ElementVector<E> u = as_vector<E>(xr) - as_vector<E>(d.X0);
     f.noalias() = d.K0 * u;
     if (K) *K = d.K0;
     return 0.5 * u.dot(f);
@@ -33,7 +36,7 @@ struct LinearElastic {
   /// Cauchy stress at the element centre: sigma = C sym(grad u).
   template <FiniteElement E>
   static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
-    const Mat3 H = (x - d.X0) * d.G_centre;
+    const Mat3 H = (relative_to_first_node<E>(x) - d.X0) * d.G_centre;
     return hooke(m, 0.5 * (H + H.transpose()));
   }
 };

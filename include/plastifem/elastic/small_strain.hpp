@@ -35,6 +35,14 @@ Vec3 reference_centre() {
   return E::reference_nodes().leftCols(E::num_vertices).rowwise().mean();
 }
 
+/// Positions relative to node 0: what the small-strain models difference against their rest
+/// shape, so that elements which are translated copies of each other share one ElementData
+/// (the solver stores each distinct shape once) without cancellation error from the offset.
+template <FiniteElement E>
+ElementNodes<E> relative_to_first_node(const ElementNodes<E>& x) {
+  return x.colwise() - x.col(0);
+}
+
 /// The element's nodal vector view of a 3 x N node matrix (dof 3a + d, as ElementNodes stores it).
 template <FiniteElement E>
 Eigen::Map<const ElementVector<E>> as_vector(const ElementNodes<E>& X) {
@@ -43,7 +51,7 @@ Eigen::Map<const ElementVector<E>> as_vector(const ElementNodes<E>& X) {
 
 template <FiniteElement E>
 struct SmallStrainData {
-  ElementNodes<E> X0;          ///< rest positions
+  ElementNodes<E> X0;          ///< rest positions relative to node 0 (shared by translated copies)
   ElementMatrix<E> K0;         ///< small-strain stiffness in the rest frame
   ShapeGradients<E> G_centre;  ///< dN/dX at the element centre
 };
@@ -55,7 +63,7 @@ template <FiniteElement E>
 SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Material& m,
                                         Volumetric volumetric = Volumetric::Full) {
   SmallStrainData<E> d;
-  d.X0 = X0;
+  d.X0 = X0.colwise() - X0.col(0);
   d.K0.setZero();
   const bool mean = volumetric == Volumetric::MeanDilatation;
   const Scalar mu = m.mu(), la = mean ? -2 * m.mu() / 3 : m.lambda();  // volumetric part added below
