@@ -3,6 +3,8 @@
 #   bash cmake/setup.sh example   the flagship example (writes VTU/PVD into build/out/)
 #   bash cmake/setup.sh test      the whole test suite through ctest
 #   bash cmake/setup.sh bench     the benchmark suite (tables + CSV into build/bench/)
+#   bash cmake/setup.sh study     the accuracy-vs-cost study (docs/study.md): CSV into build/bench/,
+#                                 plot into docs/speed_accuracy.png (~13 min, single-threaded)
 # Environment: BUILD_DIR (default build), JOBS (default: number of cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -35,5 +37,16 @@ case "$what" in
     cmake --build "$build" -j "$jobs" --target bench_step
     mkdir -p "$build/bench"
     "$build/bench/bench_step" --csv "$build/bench/step.csv" "${@:2}" ;;
-  *) echo "usage: bash cmake/setup.sh example|test|bench" >&2; exit 2 ;;
+  study)
+    cmake --build "$build" -j "$jobs" --target study_accuracy
+    mkdir -p "$build/bench"
+    "$build/bench/study_accuracy" --csv "$build/bench/study_accuracy.csv" "${@:2}"
+    if ! /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
+      echo "setup: installing python3-matplotlib"
+      sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
+      $sudo apt-get update -qq
+      DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends python3-matplotlib
+    fi
+    /usr/bin/python3 docs/plot_study.py "$build/bench/study_accuracy.csv" docs/speed_accuracy.png ;;
+  *) echo "usage: bash cmake/setup.sh example|test|bench|study" >&2; exit 2 ;;
 esac
