@@ -363,6 +363,36 @@ TEMPLATE_TEST_CASE("per-point corotational: rigid motions, small strain, exact e
     }
     REQUIRE((fd - f).norm() <= 1e-7 * f.norm());
   }
+  SECTION("exact tangent = df/dx (central differences); warped at rest; symmetric") {
+    // 10% random strain plus a big rotation: the stress is large enough that the rotational
+    // correction is O(10%) of K, so a wrong or missing term fails by far. Central differences
+    // with h = 1e-6 size: truncation ~h^2 |d3f| ~ 1e-12, round-off ~eps |f| / h ~ 1e-10
+    // relative: 1e-6 has four decades of margin.
+    const ElementNodes<E> x = rigidly_moved<E>(randomly_deformed<E>(X, 0.1, rng), big_rotation(), Vec3(1, 0, 0));
+    ElementVector<E> f, fp, fm;
+    ElementMatrix<E> K, Kw, jac;
+    Corotational::evaluate<E>(d, x, f, &K, Corotational::TangentKind::Exact);
+    Corotational::evaluate<E>(d, x, fp, &Kw);
+    const Scalar h = 1e-6 * size;
+    for (int i = 0; i < 3 * E::num_nodes; ++i) {
+      ElementNodes<E> xp = x, xm = x;
+      xp.data()[i] += h;
+      xm.data()[i] -= h;
+      Corotational::evaluate<E>(d, xp, fp, nullptr);
+      Corotational::evaluate<E>(d, xm, fm, nullptr);
+      jac.col(i) = (fp - fm) / (2 * h);
+    }
+    INFO("|K - FD| / |K| = " << (jac - K).norm() / K.norm() << ", |Kwarped - FD| / |K| = " << (jac - Kw).norm() / K.norm());
+    REQUIRE((jac - K).norm() <= 1e-6 * K.norm());
+    REQUIRE((K - K.transpose()).norm() <= 1e-13 * K.norm());
+    // The warped tangent misses the correction: it must differ by far more than the FD error.
+    REQUIRE((jac - Kw).norm() >= 1e-3 * K.norm());
+    // Rigid motion: no stress, D = 0 at every point, the exact tangent is the warped one.
+    const ElementNodes<E> xr = rigidly_moved<E>(X, big_rotation(), Vec3(0.7, -0.4, 1.3));
+    Corotational::evaluate<E>(d, xr, f, &K, Corotational::TangentKind::Exact);
+    Corotational::evaluate<E>(d, xr, fp, &Kw);
+    REQUIRE((K - Kw).norm() <= 1e-13 * Kw.norm());
+  }
   SECTION("zero net force and zero net torque at a strongly deformed state") {
     const ElementNodes<E> x = randomly_deformed<E>(X, 0.2, rng);
     ElementVector<E> f;

@@ -24,9 +24,21 @@
 //
 // Rotations come from core/polar.hpp: robust to near-degenerate and inverted F.
 //
-// Tangent, both variants: R K0 R^T omits the derivative of R with respect to x (VegaFEM's
-// warp=1, SOFA's choice). It is symmetric positive semi-definite, so CG and LDLT apply;
-// Newton then converges linearly rather than quadratically when rotations are large.
+// Tangent. The warped tangent R K0 R^T omits the derivative of R with respect to x (VegaFEM's
+// warp=1, SOFA's choice): symmetric positive semi-definite, so CG and LDLT apply, but Newton
+// converges only linearly once the stress is large. The per-point variant also has the exact
+// tangent (VegaFEM's warp=2; TangentKind::Exact). With P = R sigma, F = R S and
+// Omega = R^T dR = hat(omega):
+//   dS = R^T dF - Omega S,   Omega S + S Omega = R^T dF - dF^T R  =>  omega = Z^{-1} axial(2 skew(R^T dF)),
+//   Z = tr(S) I - S  (eigenvalues s_i + s_j: positive while the point is not inverted), and
+//   dP = 2 mu dF + lambda tr(R^T dF) R + c dR,   c = lambda tr(eps) - 2 mu,
+// which for dF = dx_b g_b^T gives, with D = c Z^{-1} + mu I (zero at rest: c = -2 mu, Z = 2 I),
+//   K_ab = sum_q dv_q [mu (g_a.g_b) I + mu h_b h_a^T + lambda h_a h_b^T - hat(h_a) R D R^T hat(h_b)]
+// i.e. the warped tangent plus a rotational-stress correction. The correction is indefinite
+// under compression (D < 0), which is the physics (a compressed bar buckles); the solver then
+// falls back to the warped tangent (TangentKind::Projected). Where Z is near singular (an
+// inverted or collapsed point, where the polar factor is not differentiable) the point keeps
+// its warped contribution.
 #include <plastifem/core/polar.hpp>
 #include <plastifem/elastic/small_strain.hpp>
 
@@ -114,9 +126,19 @@ struct Corotational {
     return d;
   }
 
+  /// Projected: the warped tangent R K0 R^T (positive semi-definite; the default and the
+  /// fallback); Exact: the true Jacobian of the force, including the derivative of R.
+  enum class TangentKind { Projected, Exact };
+
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
                          ElementMatrix<E>* K) {
+    return evaluate<E>(d, x, f, K, TangentKind::Projected);
+  }
+
+  template <FiniteElement E>
+  static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
+                         TangentKind tangent) {
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     const auto& G = d.points.G;
     const auto& dv = d.points.dv;
@@ -125,6 +147,13 @@ struct Corotational {
     // Rotated gradients h_qa = R_q g_qa, scaled by sqrt(dv_q), one column per point, so that
     // M = Hs Hs^T = sum_q dv_q vec(h_q) vec(h_q)^T in one matrix product.
     Eigen::Matrix<Scalar, 3 * N, Q> Hs;
+    // Exact tangent, written as K_ab = sum_q dv_q [2 mu (g_a.g_b) I + lambda h_a h_b^T
+    // + hat(h_a) D'~_q hat(h_b)^T] with D' = c Z^{-1} = D - mu I (the warped tangent's
+    // mu h_b h_a^T - mu (g_a.g_b) I is hat(h_a) (-mu I) hat(h_b)^T) and D'~ = R D' R^T, kept as
+    // its 6 components per point (columns 00 11 22 01 02 12).
+    const bool exact = K && tangent == TangentKind::Exact;
+    Eigen::Matrix<Scalar, Q, 6> Dp;
+    Eigen::Matrix<Scalar, Q, 3 * N> Ht;  // Ht(q, 3a + i) = hs_qa[i]: points along columns
     Scalar W = 0;
     for (int k = 0; k < Q; ++k) {
       const Mat3 F = x * G[k];
@@ -136,11 +165,56 @@ struct Corotational {
       sigma.diagonal().array() += d.lambda * tr;
       W += dv[k] * (d.mu * eps.squaredNorm() + 0.5 * d.lambda * tr * tr);
       fm.noalias() += (dv[k] * R * sigma) * G[k].transpose();
-      if (K) {
-        Eigen::Map<Eigen::Matrix<Scalar, 3, N>>(Hs.col(k).data()) = std::sqrt(dv[k]) * R * G[k].transpose();
+      if (!K) continue;
+      Eigen::Map<Eigen::Matrix<Scalar, 3, N>> hs(Hs.col(k).data());
+      hs.noalias() = std::sqrt(dv[k]) * R * G[k].transpose();
+      if (!exact) continue;
+      Mat3 Dt = -d.mu * Mat3::Identity();  // R D' R^T; -mu I: the warped tangent's point contribution
+      Mat3 Z = -(eps + Mat3::Identity());
+      Z.diagonal().array() += tr + 3;  // tr(S) I - sym(S)
+      const Scalar detZ = Z.determinant(), z = (tr + 3) * 2 / 3;  // z: Z's mean eigenvalue
+      // Z is SPD iff its leading minors are positive; 1e-8 z^3 keeps Z^{-1} (and with it the
+      // correction) below 1e8 / z, far from the non-differentiable inverted states.
+      if (Z(0, 0) > 0 && Z(0, 0) * Z(1, 1) > Z(0, 1) * Z(0, 1) && detZ > 1e-8 * z * z * z) {
+        const Mat3 D = ((d.lambda * tr - 2 * d.mu) / detZ) * detail::cofactor(Z);  // c Z^{-1} (Z symmetric)
+        Dt.noalias() = R * D * R.transpose();
       }
+      Ht.row(k) = Hs.col(k).transpose();
+      Dp.row(k) << Dt(0, 0), Dt(1, 1), Dt(2, 2), Dt(0, 1), Dt(0, 2), Dt(1, 2);
     }
-    if (K) {
+    if (exact) {
+      // The quadrature points are the SIMD dimension: every quantity is a Q-array, and each
+      // entry of K_ab is one sum over points (Q = 8 on Hex8: two AVX registers per array).
+      using PointArray = Eigen::Array<Scalar, Q, 1>;
+      auto h = [&](int a, int i) { return Ht.col(3 * a + i).array(); };
+      auto dp = [&](int m, int l) {  // D'~(m, l)
+        constexpr int column[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
+        return Dp.col(column[m][l]).array();
+      };
+      // Y_a = hat(h_a) D'~, column l = h_a x D'~(:, l): Y(q, 9a + 3i + l).
+      Eigen::Matrix<Scalar, Q, 9 * N> Y;
+      for (int a = 0; a < N; ++a)
+        for (int l = 0; l < 3; ++l) {
+          Y.col(9 * a + 0 + l) = h(a, 1) * dp(2, l) - h(a, 2) * dp(1, l);
+          Y.col(9 * a + 3 + l) = h(a, 2) * dp(0, l) - h(a, 0) * dp(2, l);
+          Y.col(9 * a + 6 + l) = h(a, 0) * dp(1, l) - h(a, 1) * dp(0, l);
+        }
+      auto y = [&](int a, int i, int l) { return Y.col(9 * a + 3 * i + l).array(); };
+      for (int b = 0; b < N; ++b)
+        for (int a = b; a < N; ++a) {
+          Mat3 Kab;
+          for (int i = 0; i < 3; ++i) {
+            // (Y_a hat(h_b)^T)(i, j) = sum_l Y_a(i, l) hat(h_b)(j, l)
+            const PointArray k0 = d.lambda * h(a, i) * h(b, 0) - y(a, i, 1) * h(b, 2) + y(a, i, 2) * h(b, 1);
+            const PointArray k1 = d.lambda * h(a, i) * h(b, 1) + y(a, i, 0) * h(b, 2) - y(a, i, 2) * h(b, 0);
+            const PointArray k2 = d.lambda * h(a, i) * h(b, 2) - y(a, i, 0) * h(b, 1) + y(a, i, 1) * h(b, 0);
+            Kab(i, 0) = k0.sum(), Kab(i, 1) = k1.sum(), Kab(i, 2) = k2.sum();
+          }
+          Kab.diagonal().array() += 2 * d.mu * d.L(a, b);
+          K->template block<3, 3>(3 * a, 3 * b) = Kab;
+          if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
+        }
+    } else if (K) {
       // Blocks a >= b from small fixed-size products M_ab = Hs_a Hs_b^T (3 x Q times Q x 3),
       // the others by symmetry: half the work of the full 3N x 3N product, and no general
       // matrix-product dispatch (which costs more than the arithmetic at these sizes).
