@@ -42,14 +42,19 @@ struct NewtonSettings {
   Scalar residual_tolerance = 1e-6;
   Scalar increment_tolerance = 1e-10;  ///< or when |du| <= tol * (|u| + mesh size)
   int max_iterations = 50;
-  /// Backtracking line search on |r|, for models with an exact tangent (hyperelastic); the
-  /// corotational models' warped tangent gives no descent guarantee, so they take full steps.
+  /// Backtracking line search on |r|, when the exact tangent is in use; the warped and
+  /// projected tangents give no descent guarantee, so with them Newton takes full steps.
   bool line_search = true;
-  /// Models without an exact tangent (the corotational ones): assemble the tangent once per
-  /// Newmark step, at the predictor, and use force-only evaluations in the later iterations.
-  /// The warped tangent already omits dR/dx, and the step's motion changes it far less than
-  /// that; bar5760 Hex8 Corotational: the same 1.9 Newton iterations per step with a third
-  /// fewer element-matrix evaluations. Exact-tangent models always update (quadratic Newton).
+  /// Use the model's exact tangent where it has one (hyperelastic models, per-point
+  /// Corotational): quadratic Newton. It is indefinite under strong compression; the solver
+  /// then falls back to the projected (PSD) tangent for the rest of the step. false: always
+  /// the projected one (for Corotational the warped R K0 R^T, SOFA's and VegaFEM's choice).
+  bool exact_tangent = true;
+  /// Without the exact tangent: assemble the tangent once per Newmark step, at the predictor,
+  /// and use force-only evaluations in the later iterations. The warped tangent already omits
+  /// dR/dx, and the step's motion changes it far less than that; bar5760 Hex8 Corotational:
+  /// the same 1.9 Newton iterations per step with a third fewer element-matrix evaluations.
+  /// The exact tangent is always updated (quadratic Newton).
   bool tangent_once_per_step = true;
 };
 
@@ -369,17 +374,22 @@ class Solver {
 
     StepReport rep;
     const bool realtime = nm.mode == NewmarkMode::RealTime;
-    exact_tangent_ = has_exact_tangent;  // exact Hessian first; projected if it is indefinite
+    exact_tangent_ = use_exact_tangent();  // exact Hessian first; projected if it is indefinite
     const int max_it = realtime ? 1 : settings_.newton.max_iterations;
     Scalar scale = 0;
     bool converged = false;
-    // Each iteration: solve A du = -r, then evaluate residual and tangent at u + du, which the
-    // next iteration needs anyway; only if |r| did not decrease, backtrack (force-only
-    // evaluations) along du.
-    // Re-assemble the tangent at every iterate, or (warped-tangent models) only here.
-    const bool update_tangent = has_exact_tangent || !settings_.newton.tangent_once_per_step ||
-                                settings_.rayleigh_stiffness != 0;  // D = beta K(u) needs the current K
+    // Each iteration: solve A du = -r, then evaluate the residual at u + du (force only); only
+    // if |r| did not decrease, backtrack (force-only evaluations) along du.
+    // The tangent is re-assembled at every iterate (exact tangent) or only here (warped). It
+    // is assembled lazily, once an iterate has failed the convergence test: most steps
+    // converge after one Newton iteration, and a tangent at the converged point would be
+    // wasted (bar5760 Hex8 NeoHookean: one of two tangent assemblies per step). Rayleigh
+    // stiffness damping D = beta K(u) needs K with every residual.
+    const bool update_tangent = exact_tangent_ || !settings_.newton.tangent_once_per_step ||
+                                settings_.rayleigh_stiffness != 0;
+    const bool tangent_with_residual = settings_.rayleigh_stiffness != 0;
     dynamic_residual(u_try_, dt, c0, true);  // fills r_, K_ (and f_int_)
+    bool tangent_at_iterate = true;         // K_ is the tangent at u_try_
     bool system_stale = true;               // A_ = c M + K_ needs forming from the new K_
     Scalar rnorm = free_norm(r_);
     for (int it = 0;; ++it) {
@@ -394,6 +404,10 @@ class Solver {
         break;
       }
       if (it == max_it) break;
+      if (update_tangent && !tangent_at_iterate) {
+        assemble(u_try_, f_int_, &K_);  // f_int_ is unchanged: same u
+        tangent_at_iterate = system_stale = true;
+      }
       rhs_ = -r_;
       for (Index i = 0; i < num_dofs(); ++i)
         if (constrained_[i]) rhs_[i] = 0;
@@ -436,16 +450,17 @@ class Solver {
         break;
       }
       work2_ = u_try_ + du_;
-      dynamic_residual(work2_, dt, c0, update_tangent);
-      system_stale = system_stale || update_tangent;
+      dynamic_residual(work2_, dt, c0, tangent_with_residual);
+      tangent_at_iterate = tangent_with_residual;
+      system_stale = system_stale || tangent_with_residual;
       Scalar r_new = free_norm(r_), step = 1;
       if (line_search_applies() && !(std::isfinite(r_new) && r_new < (1 - 1e-4) * rnorm)) {
         step = line_search(u_try_, du_, rnorm, dt, c0);
         // No descent along an exact-Hessian direction: use the projected (PSD) tangent for the
         // rest of this step.
-        if (step == 1 && has_exact_tangent) exact_tangent_ = false;
+        if (step == 1 && exact_tangent_) exact_tangent_ = false;
         work2_ = u_try_ + step * du_;
-        dynamic_residual(work2_, dt, c0, true);
+        dynamic_residual(work2_, dt, c0, tangent_with_residual);
         r_new = free_norm(r_);
       }
       u_try_.swap(work2_);
@@ -601,6 +616,7 @@ class Solver {
     const Index ne = mesh_.num_elements();
     std::map<std::vector<Scalar>, std::uint32_t> shape_index;
     data_of_.resize(ne);
+    element_energy_.assign(ne, 0.0);
     for (Index e = 0; e < ne; ++e) {
       const ElementNodes<E> X0 = mesh_.element_nodes(e);
       const ElementNodes<E> rel = X0.colwise() - X0.col(0);
@@ -622,9 +638,11 @@ class Solver {
   /// Backtracking needs a descent direction for |r|, which only the exact Jacobian guarantees:
   /// with the warped corotational tangent it mostly fails and costs force evaluations
   /// (bar720 Tet4 Corotational: 9.2 ms per accurate-mode Newton iteration against 4.8 ms for
-  /// the real-time one, the difference being rejected trial steps), so those models
-  /// take full Newton steps.
-  bool line_search_applies() const { return settings_.newton.line_search && has_exact_tangent; }
+  /// the real-time one, the difference being rejected trial steps), so without the exact
+  /// tangent Newton takes full steps. A step that fell back to the projected tangent keeps the
+  /// search: for the ln J energies it is what rejects a trial step that inverts an element.
+  bool line_search_applies() const { return settings_.newton.line_search && use_exact_tangent(); }
+  bool use_exact_tangent() const { return has_exact_tangent && settings_.newton.exact_tangent; }
 
   /// Runs a linear solve; if it fails because the exact tangent made the system indefinite
   /// (negative LDLT pivot, CG breakdown), switches to the projected tangent and solves again.
@@ -745,10 +763,11 @@ class Solver {
           ElementVector<E> fe;
           ElementMatrix<E> Ke;
           if constexpr (has_exact_tangent)
-            Elastic::template evaluate<E>(data(e), current_nodes(e, u), fe, K ? &Ke : nullptr,
-                                          exact_tangent_ ? Elastic::TangentKind::Exact : Elastic::TangentKind::Projected);
+            element_energy_[e] = Elastic::template evaluate<E>(
+                data(e), current_nodes(e, u), fe, K ? &Ke : nullptr,
+                exact_tangent_ ? Elastic::TangentKind::Exact : Elastic::TangentKind::Projected);
           else
-            Elastic::template evaluate<E>(data(e), current_nodes(e, u), fe, K ? &Ke : nullptr);
+            element_energy_[e] = Elastic::template evaluate<E>(data(e), current_nodes(e, u), fe, K ? &Ke : nullptr);
           const auto& c = mesh_.element(e);
           for (int a = 0; a < N; ++a) f.segment<3>(3 * c[a]) += fe.template segment<3>(3 * a);
           if (K) assembler_.add_element_matrix(e, Ke, values);
@@ -756,6 +775,12 @@ class Solver {
         settings_.threads);
   }
   void internal_force(const Vector& u, Vector& f) const { assemble(u, f, nullptr); }
+  /// Total potential energy W(u) - f_ext . u of the last assembled u (dead loads).
+  Scalar potential_energy(const Vector& u) const {
+    Scalar w = 0;
+    for (Scalar we : element_energy_) w += we;
+    return w - f_ext_.dot(u);
+  }
   void assemble_tangent(const Vector& u, BlockSymmetricMatrix& K) const {
     Vector f(num_dofs());
     assemble(u, f, &K);
@@ -848,7 +873,7 @@ class Solver {
 
   StepReport newton_static(Vector& u) {
     StepReport rep;
-    exact_tangent_ = has_exact_tangent;
+    exact_tangent_ = use_exact_tangent();
     Scalar scale = std::max(free_norm(f_ext_), 1e-30);
     for (int it = 0; it < settings_.newton.max_iterations + 1; ++it) {
       assemble(u, f_int_, &K_);
@@ -880,17 +905,25 @@ class Solver {
         rep.relative_residual = rep.residual / scale;
         return rep;
       }
-      // Backtracking on |r|; if no step length decreases it (the corotational tangent is not
-      // the exact Jacobian, so the direction need not descend), take the full Newton step.
+      // Backtracking (Armijo) on the potential energy Pi = W(u) - f_ext . u, which the exact
+      // Newton direction descends whenever K is positive definite (slope r . du < 0). On |r|
+      // instead, bending crawls: the full step that straightens the rotation field raises |r|
+      // before it falls (Hex8 bar at 1 g: 179 Newton iterations on |r|, 31 on Pi). If no
+      // step length decreases Pi, take the full Newton step and project from now on.
       Scalar s = 1;
       if (line_search_applies() && !Elastic::constant_tangent) {
+        const Scalar pi0 = potential_energy(u), slope = r_.dot(du_);
         bool decreased = false;
-        for (int k = 0; k < 8 && !decreased; ++k) {
+        for (int k = 0; k < 8 && !decreased && slope < 0; ++k) {
           work2_ = u + s * du_;
           internal_force(work2_, work_);
+          const Scalar pi = potential_energy(work2_);
           work_ -= f_ext_;
           const Scalar r = free_norm(work_);
-          decreased = std::isfinite(r) && r < (1 - 1e-4 * s) * rnorm;
+          // Either merit function may accept: Pi (with the round-off of Pi near convergence
+          // allowed for) or |r|.
+          decreased = std::isfinite(pi) && std::isfinite(r) &&
+                      (pi <= pi0 + 1e-4 * s * slope + 1e-12 * (std::abs(pi0) + 1e-30) || r < (1 - 1e-4 * s) * rnorm);
           if (!decreased) s *= 0.5;
         }
         if (!decreased) {
@@ -950,6 +983,7 @@ class Solver {
   Vector X_, u_, v_, a_;
   Vector f_int_, f_ext_, r_, du_, rhs_, u_try_, a_try_, v_try_, prescribed_;
   mutable Vector work_;
+  mutable std::vector<Scalar> element_energy_;  ///< W_e of the last assembly (line search)
   Vector work2_, work3_, first_increment_, next_first_increment_, a_start_;
   Scalar time_ = 0, mesh_size_ = 1;
   bool initial_acceleration_known_ = false;
