@@ -100,8 +100,7 @@ using CorotationalMeanDilatation = CorotationalPerElementT<Volumetric::MeanDilat
 
 template <FiniteElement E>
 struct CorotationalData {
-  QuadraturePoints<E> points;
-  Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;  ///< sum_q dv_q g_qa . g_qb (rotation-free part)
+  QuadraturePoints<E> points;  ///< with L = sum_q dv_q g_qa . g_qb (rotation-free part)
   ShapeGradients<E> G_centre;
   Scalar mu, lambda;
 };
@@ -117,9 +116,6 @@ struct Corotational {
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
     ElementData<E> d;
     d.points = prepare_points<E>(X0);
-    d.L.setZero();
-    for (int k = 0; k < d.points.size; ++k)
-      d.L.noalias() += d.points.dv[k] * d.points.G[k] * d.points.G[k].transpose();
     d.G_centre = physical_gradient<E>(X0, reference_centre<E>());
     d.mu = m.mu();
     d.lambda = m.lambda();
@@ -210,7 +206,7 @@ struct Corotational {
             const PointArray k2 = d.lambda * h(a, i) * h(b, 2) - y(a, i, 0) * h(b, 1) + y(a, i, 1) * h(b, 0);
             Kab(i, 0) = k0.sum(), Kab(i, 1) = k1.sum(), Kab(i, 2) = k2.sum();
           }
-          Kab.diagonal().array() += 2 * d.mu * d.L(a, b);
+          Kab.diagonal().array() += 2 * d.mu * d.points.L(a, b);
           K->template block<3, 3>(3 * a, 3 * b) = Kab;
           if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
         }
@@ -222,7 +218,7 @@ struct Corotational {
         for (int a = b; a < N; ++a) {
           const Mat3 M = Hs.template middleRows<3>(3 * a).lazyProduct(Hs.template middleRows<3>(3 * b).transpose());
           Mat3 Kab = d.lambda * M + d.mu * M.transpose();
-          Kab.diagonal().array() += d.mu * d.L(a, b);
+          Kab.diagonal().array() += d.mu * d.points.L(a, b);
           K->template block<3, 3>(3 * a, 3 * b) = Kab;
           if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
         }

@@ -290,7 +290,6 @@ struct Hyperelastic {
     Eigen::Map<ElementNodes<E>> fm(f.data());
     fm.setZero();
     Eigen::Matrix<Scalar, 3 * N, Q> H, Hd, Hc;  // h_qa, dv_q h_qa, dv_q (mu - lambda ln J_q) h_qa
-    Eigen::Matrix<Scalar, N, 3 * Q> Gs, Gd;     // g_qa and dv_q g_qa, point by point
     Scalar W = 0;
     for (int q = 0; q < Q; ++q) {
       const ShapeGradients<E>& G = d.points.G[q];
@@ -311,12 +310,10 @@ struct Hyperelastic {
         h.noalias() = FinvT * G.transpose();
         Hd.col(q) = dv * H.col(q);
         Hc.col(q) = (dv * (mu - lambda * lnJ)) * H.col(q);
-        Gs.template middleCols<3>(3 * q) = G;
-        Gd.template middleCols<3>(3 * q) = dv * G;
       }
     }
     if (K) {
-      const Eigen::Matrix<Scalar, N, N> L = Gd.lazyProduct(Gs.transpose());  // sum_q dv g_a . g_b
+      const auto& L = d.points.L;  // sum_q dv g_a . g_b, precomputed
       for (int b = 0; b < N; ++b)
         for (int a = b; a < N; ++a) {
           const auto Hb = H.template middleRows<3>(3 * b).transpose();

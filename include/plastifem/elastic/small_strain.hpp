@@ -101,6 +101,9 @@ struct QuadraturePoints {
   static constexpr int size = decltype(E::template quadrature<E::stiffness_degree>())::size;
   std::array<ShapeGradients<E>, size> G;  ///< dN/dX at each point
   std::array<Scalar, size> dv;            ///< w_q det J_q
+  /// L_ab = sum_q dv_q g_qa . g_qb: the rotation-free part of the corotational and Neo-Hookean
+  /// tangents, a rest-shape quantity.
+  Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;
 };
 
 template <FiniteElement E>
@@ -111,6 +114,8 @@ QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
     p.dv[k] = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
     p.G[k] = physical_gradient<E>(X0, q.points[k]);
   }
+  p.L.setZero();
+  for (int k = 0; k < q.size; ++k) p.L.noalias() += p.dv[k] * p.G[k] * p.G[k].transpose();
   return p;
 }
 

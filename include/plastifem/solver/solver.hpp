@@ -42,7 +42,8 @@ struct NewtonSettings {
   Scalar residual_tolerance = 1e-6;
   Scalar increment_tolerance = 1e-10;  ///< or when |du| <= tol * (|u| + mesh size)
   int max_iterations = 50;
-  /// Backtracking line search on |r|, when the exact tangent is in use; the warped and
+  /// Backtracking line search when the exact tangent is in use: Armijo on the potential
+  /// energy or a decrease of |r| in statics, a decrease of |r| in dynamics. The warped and
   /// projected tangents give no descent guarantee, so with them Newton takes full steps.
   bool line_search = true;
   /// Use the model's exact tangent where it has one (hyperelastic models, per-point
@@ -385,8 +386,7 @@ class Solver {
     // converge after one Newton iteration, and a tangent at the converged point would be
     // wasted (bar5760 Hex8 NeoHookean: one of two tangent assemblies per step). Rayleigh
     // stiffness damping D = beta K(u) needs K with every residual.
-    const bool update_tangent = exact_tangent_ || !settings_.newton.tangent_once_per_step ||
-                                settings_.rayleigh_stiffness != 0;
+    const bool update_tangent = exact_tangent_ || !settings_.newton.tangent_once_per_step;
     const bool tangent_with_residual = settings_.rayleigh_stiffness != 0;
     dynamic_residual(u_try_, dt, c0, true);  // fills r_, K_ (and f_int_)
     bool tangent_at_iterate = true;         // K_ is the tangent at u_try_
@@ -458,7 +458,7 @@ class Solver {
         step = line_search(u_try_, du_, rnorm, dt, c0);
         // No descent along an exact-Hessian direction: use the projected (PSD) tangent for the
         // rest of this step.
-        if (step == 1 && exact_tangent_) exact_tangent_ = false;
+        if (step == 1) exact_tangent_ = false;
         work2_ = u_try_ + step * du_;
         dynamic_residual(work2_, dt, c0, tangent_with_residual);
         r_new = free_norm(r_);
