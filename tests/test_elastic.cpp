@@ -428,7 +428,7 @@ TEMPLATE_TEST_CASE("per-point corotational: rigid motions, small strain, exact e
   }
 }
 
-TEMPLATE_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress; von Mises of uniaxial stress", "[elastic][stress]",
+TEMPLATE_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress, von Mises of uniaxial stress", "[elastic][stress]",
                    Tet4, Tet10, Hex8) {
   using E = TestType;
   std::mt19937 rng(23);
@@ -473,7 +473,7 @@ TEMPLATE_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress; von Mises 
 
 // ---- material --------------------------------------------------------------------------------
 
-TEST_CASE("material validation names the bad parameter; from_lame round-trips", "[elastic][material]") {
+TEST_CASE("material validation names the bad parameter, from_lame round-trips", "[elastic][material]") {
   const Scalar nan = std::numeric_limits<Scalar>::quiet_NaN(), inf = std::numeric_limits<Scalar>::infinity();
   auto check = [](const Material& m) { (void)m.validated(); };
   REQUIRE(error_of([&] { check({1000, 0.3, 1}); }) == "(no error)");

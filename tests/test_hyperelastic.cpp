@@ -252,7 +252,7 @@ TEST_CASE("ln J Neo-Hookean: an inverted start gives a clear error and an unchan
   REQUIRE(solver.time() == 0);
 }
 
-TEMPLATE_TEST_CASE("nearly incompressible (nu = 0.499) bending: no NaN, bounded Newton iterations; 100x dt stable",
+TEMPLATE_TEST_CASE("nearly incompressible (nu = 0.499) bending: no NaN, bounded Newton iterations, 100x dt stable",
                    "[hyper][extreme]", NeoHookean, StableNeoHookean) {
   using M = TestType;
   const auto mesh = bar_mesh<Hex8>(10, 3, 3);
@@ -283,7 +283,7 @@ TEMPLATE_TEST_CASE("nearly incompressible (nu = 0.499) bending: no NaN, bounded 
   REQUIRE(solver.displacement().cwiseAbs().maxCoeff() < 10);
 }
 
-TEST_CASE("mean dilatation removes Neo-Hookean volumetric locking on Hex8; homogeneous states unchanged",
+TEST_CASE("mean dilatation removes Neo-Hookean volumetric locking on Hex8, homogeneous states unchanged",
           "[hyper][locking]") {
   // Homogeneous uniaxial stretch: Jbar = J at every point, so the closed form still holds.
   check_uniaxial<NeoHookeanMeanDilatation>(1.5, neo_hookean_uniaxial(1.5, rubber));

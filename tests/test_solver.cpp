@@ -523,7 +523,7 @@ TEMPLATE_LIST_TEST_CASE("invariants of every element and elastic model", "[solve
 
 // ---- reactions, mass ---------------------------------------------------------------------------
 
-TEMPLATE_TEST_CASE("reactions at the clamp balance the weight; mass = density x volume", "[solver][reactions]", Tet4,
+TEMPLATE_TEST_CASE("reactions at the clamp balance the weight, mass = density x volume", "[solver][reactions]", Tet4,
                    Tet10, Hex8) {
   using E = TestType;
   const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
@@ -809,7 +809,7 @@ TEMPLATE_TEST_CASE("translated copies share element data, and a far-translated b
 
 // ---- exact corotational tangent ---------------------------------------------------------------
 
-TEST_CASE("corotational statics: exact and warped tangents reach the same equilibrium; only the exact one at 3 g",
+TEST_CASE("corotational statics: exact and warped tangents reach the same equilibrium, only the exact one at 3 g",
           "[solver][corotational][tangent]") {
   // The SCENES bar (bar90 Hex8, E 3000, nu 0.45) clamped at x = 0 under gravity, statics with
   // 8 load steps. The tangent changes Newton's path, never its fixed point: at 1 g both reach
