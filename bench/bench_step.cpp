@@ -15,6 +15,7 @@
 //                        stable-neohookean]
 //              (corotational: the exact tangent, the default; corotational-warped: R K0 R^T)
 //              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
+//              [--cg-cap N] (real-time rows also with CG capped at N iterations; default 5, 0: none)
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>
@@ -66,13 +67,14 @@ std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
+/// cg_cap > 0: real-time mode with CG stopped after cg_cap iterations (or at 1e-6, if sooner).
 template <class E, class Model>
 Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind, NewmarkMode mode, int threads,
-            bool exact_tangent = true) {
+            bool exact_tangent = true, int cg_cap = 0) {
   const auto [nx, ny, nz] = bar_scene_cells(scene);
   SolverSettings st;
   st.newton.exact_tangent = exact_tangent;
-  st.linear = {kind, 1e-6, 1000};  // CG to 1e-6 relative, warm-started (SCENES / issue targets)
+  st.linear = {kind, 1e-6, cg_cap > 0 ? cg_cap : 1000};  // CG to 1e-6 relative, warm-started (SCENES / issue targets)
   st.newmark.mode = mode;
   st.threads = threads;
 #ifdef _OPENMP
@@ -99,7 +101,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   const double n = static_cast<double>(ms.size());
   const std::string model = exact_tangent ? Model::name : fmt::format("{} (warped)", Model::name);
   return {scene, E::name, model,
-          kind == LinearSolverKind::Direct ? "LDLT" : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
+          kind == LinearSolverKind::Direct ? "LDLT" : cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
           threads, s.num_dofs(), mesh.num_elements(), heap_mb() - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
 }
 
@@ -113,11 +115,13 @@ int main(int argc, char** argv) try {
                                   "neohookean", "stable-neohookean"};
   std::string csv = "bench_step.csv";
   bool quick = false;
+  int cg_cap = 5;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
     else if (i + 1 < argc && a == "--scenes") scenes = split(argv[++i]);
     else if (i + 1 < argc && a == "--csv") csv = argv[++i];
+    else if (i + 1 < argc && a == "--cg-cap") cg_cap = std::stoi(argv[++i]);
     else if (i + 1 < argc && a == "--elements") elements = split(argv[++i]);
     else if (i + 1 < argc && a == "--models") models = split(argv[++i]);
     else if (i + 1 < argc && a == "--threads") {
@@ -166,6 +170,7 @@ int main(int argc, char** argv) try {
       if (want("corotational")) {
         emit(measure<E, Corotational>(scene, mesh, CG, accurate, t));
         if (!quick) emit(measure<E, Corotational>(scene, mesh, CG, realtime, t));
+        if (!quick && cg_cap > 0) emit(measure<E, Corotational>(scene, mesh, CG, realtime, t, true, cg_cap));
         if (direct_ok && !quick) emit(measure<E, Corotational>(scene, mesh, LDLT, accurate, t));
       }
       if (want("corotational-warped")) {
@@ -175,6 +180,7 @@ int main(int argc, char** argv) try {
       if (!std::is_same_v<E, Tet4> && want("corotational-element")) {  // identical to Corotational on Tet4
         emit(measure<E, CorotationalPerElement>(scene, mesh, CG, accurate, t));
         if (!quick) emit(measure<E, CorotationalPerElement>(scene, mesh, CG, realtime, t));
+        if (!quick && cg_cap > 0) emit(measure<E, CorotationalPerElement>(scene, mesh, CG, realtime, t, true, cg_cap));
       }
       if (want("neohookean")) {
         emit(measure<E, NeoHookean>(scene, mesh, CG, accurate, t));
