@@ -6,6 +6,8 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <array>
 #include <random>
 
 using namespace plastifem;
@@ -57,6 +59,41 @@ TEST_CASE("polar rotation matches the SVD from tiny to large stretches, and hand
   CHECK(rotation_of(Mat3::Zero()) == Mat3::Identity());
   CHECK(rotation_of(Mat3::Constant(std::nan(""))) == Mat3::Identity());
   CHECK(rotation_of(Vec3(1, 1, 0).asDiagonal()).allFinite());
+}
+
+TEST_CASE("batched polar rotations equal one-at-a-time ones, with every branch in one batch", "[polar]") {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<Scalar> u(-1, 1);
+  // Each batch of 8 mixes a rotation, small and large stretches (the lockstep and the scaled-
+  // Newton branch), an inverted and a degenerate F (the SVD branch) and a non-finite one.
+  for (int trial = 0; trial < 500; ++trial) {
+    std::array<Mat3, 8> F, R;
+    const Scalar amps[5] = {0.0, 1e-6, 0.03, 0.1, 0.7};
+    for (int q = 0; q < 5; ++q) {
+      Mat3 D;
+      for (int i = 0; i < 9; ++i) D(i / 3, i % 3) = amps[q] * u(rng);
+      F[q] = random_rotation(rng) * (Mat3::Identity() + D) * (1 + 3 * std::abs(u(rng)));  // any scale
+    }
+    F[5] = random_rotation(rng) * Vec3(1.2, 0.9, -0.1).asDiagonal();
+    F[6] = Vec3(1, 1, 0).asDiagonal();
+    F[7] = trial % 2 ? Mat3::Constant(std::nan("")) : Mat3::Zero();
+    std::shuffle(F.begin(), F.end(), rng);
+    rotations_of<8>(F, R);
+    for (int q = 0; q < 8; ++q) {
+      // A point converged early takes the others' remaining Newton-Schulz steps, which leave
+      // it fixed to round-off: a few eps, like two orderings of the same sums.
+      INFO("trial " << trial << " point " << q << "\nF =\n" << F[q]);
+      REQUIRE((R[q] - rotation_of(F[q])).norm() < 1e-14);
+    }
+  }
+  // Q = 4 (Tet10) and Q = 1 (Tet4, bit-identical to rotation_of).
+  std::array<Mat3, 4> F4, R4;
+  for (auto& F : F4) F = random_rotation(rng) * (Mat3::Identity() + 0.02 * Mat3::Random());
+  rotations_of<4>(F4, R4);
+  for (int q = 0; q < 4; ++q) CHECK((R4[q] - rotation_of(F4[q])).norm() < 1e-14);
+  std::array<Mat3, 1> F1{random_rotation(rng) * Vec3(1.01, 0.98, 1.02).asDiagonal()}, R1;
+  rotations_of<1>(F1, R1);
+  CHECK(R1[0] == rotation_of(F1[0]));
 }
 
 TEST_CASE("block-symmetric matrix: assembly, product, diagonal, sum and CSC copy against dense", "[assembly]") {

@@ -14,10 +14,11 @@
 // the sign of the smallest singular value flipped so that det R = +1 (Irving, Teran and Fedkiw
 // 2004, "invertible FEM"): the element is then treated as a rotated element compressed through
 // zero in its weakest direction, and pushed back.
-// Cost (bench, this machine): ~60 ns at 5% strain, against ~300 ns for Newton alone to 1e-13.
+// Cost (this machine, -march=native): ~65 ns at 0.1% strain, ~100 ns at 5%, ~155 ns at 20%.
 #include <plastifem/core/types.hpp>
 
 #include <Eigen/SVD>
+#include <array>
 #include <cmath>
 
 namespace plastifem {
@@ -45,26 +46,106 @@ inline Mat3 rotation_by_svd(const Mat3& X) {
 }  // namespace detail
 
 /// Closest proper rotation to F (det R = +1), robust to degenerate and inverted F.
+///
+/// The iteration is written out in scalars on a local array: Eigen's 3x3 product assignments
+/// are not all inlined at this size, and the scalar form is 1.6-2.5x faster (at 0.1% strain
+/// 163 -> 64 ns per decomposition, at 5% 245 -> 98 ns, at 20% 330 -> 154 ns).
 inline Mat3 rotation_of(const Mat3& F) {
   const Scalar norm2 = F.squaredNorm();
   if (!(norm2 > 0) || !std::isfinite(norm2)) return Mat3::Identity();
-  Mat3 X = F * std::sqrt(3 / norm2);  // rms singular value 1: thresholds below are relative
-  if (!(X.determinant() > 5e-3)) return detail::rotation_by_svd(X);
+  const Scalar scale = std::sqrt(3 / norm2);  // rms singular value 1: thresholds below are relative
+  Scalar x[9];                                // X, column-major: X(r, c) = x[r + 3c]
+  for (int i = 0; i < 9; ++i) x[i] = scale * F.data()[i];
+  const Scalar det = x[0] * (x[4] * x[8] - x[7] * x[5]) - x[3] * (x[1] * x[8] - x[7] * x[2]) +
+                     x[6] * (x[1] * x[5] - x[4] * x[2]);
+  if (!(det > 5e-3)) return detail::rotation_by_svd(Eigen::Map<const Mat3>(x));
   for (int k = 0; k < 40; ++k) {
-    Mat3 E = X.transpose() * X;
-    E.diagonal().array() -= 1;
-    const Scalar e2 = E.squaredNorm();
+    // E = X^T X - I: the Gram matrix of X's columns (symmetric, 6 entries), and |E|_F^2.
+    const Scalar e00 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - 1;
+    const Scalar e11 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5] - 1;
+    const Scalar e22 = x[6] * x[6] + x[7] * x[7] + x[8] * x[8] - 1;
+    const Scalar e01 = x[0] * x[3] + x[1] * x[4] + x[2] * x[5];
+    const Scalar e02 = x[0] * x[6] + x[1] * x[7] + x[2] * x[8];
+    const Scalar e12 = x[3] * x[6] + x[4] * x[7] + x[5] * x[8];
+    const Scalar e2 = e00 * e00 + e11 * e11 + e22 * e22 + 2 * (e01 * e01 + e02 * e02 + e12 * e12);
     if (e2 < 1.0 / 16) {
-      X = X - 0.5 * (X * E);  // Newton-Schulz
-      if (e2 < 1e-16) return X;
+      // Newton-Schulz: X <- X - X E / 2, each row of X times E.
+      for (int r = 0; r < 3; ++r) {
+        const Scalar a = x[r], b = x[r + 3], c = x[r + 6];
+        x[r] = a - 0.5 * (a * e00 + b * e01 + c * e02);
+        x[r + 3] = b - 0.5 * (a * e01 + b * e11 + c * e12);
+        x[r + 6] = c - 0.5 * (a * e02 + b * e12 + c * e22);
+      }
+      if (e2 < 1e-16) return Eigen::Map<const Mat3>(x);
     } else {
-      const Mat3 C = detail::cofactor(X);  // det X^{-T}
-      const Scalar det = X.col(0).dot(C.col(0));
-      const Scalar g = std::sqrt(C.norm() / (det * X.norm()));
-      X = 0.5 * (g * X + C / (g * det));
+      // Scaled Newton (Higham): X <- (g X + X^{-T} / g) / 2, with X^{-T} = cof(X) / det X.
+      Eigen::Map<Mat3> X(x);
+      const Mat3 C = detail::cofactor(X);
+      const Scalar d = X.col(0).dot(C.col(0));
+      const Scalar g = std::sqrt(C.norm() / (d * X.norm()));
+      X = 0.5 * (g * X + C / (g * d));
     }
   }
-  return detail::rotation_by_svd(X);  // not reached for det X > 5e-3 (Newton converges from there)
+  return detail::rotation_by_svd(Eigen::Map<const Mat3>(x));  // not reached for det X > 5e-3
+}
+
+/// The rotations of Q deformation gradients at once (the quadrature points of one element):
+/// rotation_of's Newton-Schulz iteration run in lockstep, each of the nine components of X an
+/// array over the points, so the arithmetic vectorises across points and their dependency
+/// chains overlap. A point that needs the scaled-Newton or SVD branch (stretch beyond about
+/// 12%, near-singular or inverted F) is left out of the lockstep and done by rotation_of.
+/// Agrees with rotation_of to round-off: a point whose iteration has converged takes the
+/// others' remaining steps, which leave X fixed to ~1e-16. Hex8 (8 points): 8 x 98 -> 190 ns
+/// in all at 5% strain.
+template <int Q>
+void rotations_of(const std::array<Mat3, Q>& F, std::array<Mat3, Q>& R) {
+  if constexpr (Q == 1) {
+    R[0] = rotation_of(F[0]);
+  } else {
+    using PointArray = Eigen::Array<Scalar, Q, 1>;
+    std::array<PointArray, 9> x;  // x[r + 3c](q) = X_q(r, c)
+    PointArray norm2;
+    for (int q = 0; q < Q; ++q) {
+      norm2(q) = F[q].squaredNorm();
+      for (int i = 0; i < 9; ++i) x[i](q) = F[q].data()[i];
+    }
+    // Scaled to rms singular value 1, then the same entry tests as rotation_of: det X > 5e-3
+    // and |X^T X - I| < 1/4. Other points are replaced by the identity (converged) here.
+    const PointArray scale = (norm2 > 0 && norm2.isFinite()).select((3 / norm2).sqrt(), PointArray::Zero());
+    for (auto& xi : x) xi *= scale;
+    const PointArray det = x[0] * (x[4] * x[8] - x[7] * x[5]) - x[3] * (x[1] * x[8] - x[7] * x[2]) +
+                           x[6] * (x[1] * x[5] - x[4] * x[2]);
+    PointArray gram = PointArray::Zero();
+    for (int c = 0; c < 3; ++c)
+      for (int d = 0; d < 3; ++d) {
+        const PointArray e = x[3 * c] * x[3 * d] + x[3 * c + 1] * x[3 * d + 1] + x[3 * c + 2] * x[3 * d + 2] - (c == d);
+        gram += e * e;
+      }
+    const Eigen::Array<bool, Q, 1> alone = !(det > 5e-3 && gram < 1.0 / 16);  // also true for NaN
+    for (int i = 0; i < 9; ++i) x[i] = alone.select(PointArray::Constant(i % 4 == 0 ? 1 : 0), x[i]);
+    bool converged = false;
+    for (int k = 0; k < 40 && !converged; ++k) {
+      const PointArray e00 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - 1;
+      const PointArray e11 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5] - 1;
+      const PointArray e22 = x[6] * x[6] + x[7] * x[7] + x[8] * x[8] - 1;
+      const PointArray e01 = x[0] * x[3] + x[1] * x[4] + x[2] * x[5];
+      const PointArray e02 = x[0] * x[6] + x[1] * x[7] + x[2] * x[8];
+      const PointArray e12 = x[3] * x[6] + x[4] * x[7] + x[5] * x[8];
+      const Scalar e2 = (e00 * e00 + e11 * e11 + e22 * e22 + 2 * (e01 * e01 + e02 * e02 + e12 * e12)).maxCoeff();
+      for (int r = 0; r < 3; ++r) {
+        const PointArray a = x[r], b = x[r + 3], c = x[r + 6];
+        x[r] = a - 0.5 * (a * e00 + b * e01 + c * e02);
+        x[r + 3] = b - 0.5 * (a * e01 + b * e11 + c * e12);
+        x[r + 6] = c - 0.5 * (a * e02 + b * e12 + c * e22);
+      }
+      converged = e2 < 1e-16;  // every point: |E| < 1e-8 before this step, ~1e-16 after
+    }
+    for (int q = 0; q < Q; ++q) {
+      if (alone[q] || !converged) R[q] = rotation_of(F[q]);
+      else
+        for (int i = 0; i < 9; ++i) R[q].data()[i] = x[i](q);
+    }
+  }
 }
 
 }  // namespace plastifem

@@ -151,9 +151,12 @@ struct Corotational {
     Eigen::Matrix<Scalar, Q, 6> Dp;
     Eigen::Matrix<Scalar, Q, 3 * N> Ht;  // Ht(q, 3a + i) = hs_qa[i]: points along columns
     Scalar W = 0;
+    std::array<Mat3, Q> Fq, Rq;
+    for (int k = 0; k < Q; ++k) Fq[k].noalias() = x * G[k];
+    rotations_of<Q>(Fq, Rq);  // all points at once: vectorised across points
     for (int k = 0; k < Q; ++k) {
-      const Mat3 F = x * G[k];
-      const Mat3 R = rotation_of(F);
+      const Mat3& F = Fq[k];
+      const Mat3& R = Rq[k];
       const Mat3 S = R.transpose() * F;
       const Mat3 eps = 0.5 * (S + S.transpose()) - Mat3::Identity();
       const Scalar tr = eps.trace();
