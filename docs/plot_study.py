@@ -46,7 +46,7 @@ TITLES = {
     "linear": "linear: discretisation only (Linear statics)",
     "static": "static: bending under gravity",
     "dynamic": "dynamic: 200 Newmark steps, tip history",
-    "large": "large: Neo-Hookean bending under 3 g",
+    "large": "large: bending under 3 g",
 }
 
 
