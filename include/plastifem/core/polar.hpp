@@ -35,6 +35,35 @@ inline Mat3 cofactor(const Mat3& X) {
   return C;
 }
 
+/// det X for X given as 9 column-major components x[r + 3c] of type T: a Scalar, or an
+/// Eigen array over quadrature points (rotations_of).
+template <class T>
+T determinant(const T* x) {
+  return x[0] * (x[4] * x[8] - x[7] * x[5]) - x[3] * (x[1] * x[8] - x[7] * x[2]) + x[6] * (x[1] * x[5] - x[4] * x[2]);
+}
+
+/// E = X^T X - I, the Gram matrix of X's columns minus I (symmetric: 6 entries), for X as in
+/// determinant(); and the Newton-Schulz step built on it.
+template <class T>
+struct GramDeviation {
+  T e00, e11, e22, e01, e02, e12;
+  explicit GramDeviation(const T* x)
+      : e00(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - 1), e11(x[3] * x[3] + x[4] * x[4] + x[5] * x[5] - 1),
+        e22(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] - 1), e01(x[0] * x[3] + x[1] * x[4] + x[2] * x[5]),
+        e02(x[0] * x[6] + x[1] * x[7] + x[2] * x[8]), e12(x[3] * x[6] + x[4] * x[7] + x[5] * x[8]) {}
+  /// |E|_F^2
+  T squared_norm() const { return e00 * e00 + e11 * e11 + e22 * e22 + 2 * (e01 * e01 + e02 * e02 + e12 * e12); }
+  /// Newton-Schulz: X <- X - X E / 2, each row of X times E.
+  void newton_schulz_step(T* x) const {
+    for (int r = 0; r < 3; ++r) {
+      const T a = x[r], b = x[r + 3], c = x[r + 6];
+      x[r] = a - 0.5 * (a * e00 + b * e01 + c * e02);
+      x[r + 3] = b - 0.5 * (a * e01 + b * e11 + c * e12);
+      x[r + 6] = c - 0.5 * (a * e02 + b * e12 + c * e22);
+    }
+  }
+};
+
 inline Mat3 rotation_by_svd(const Mat3& X) {
   Eigen::JacobiSVD<Mat3> svd(X, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Mat3 U = svd.matrixU();
@@ -56,26 +85,12 @@ inline Mat3 rotation_of(const Mat3& F) {
   const Scalar scale = std::sqrt(3 / norm2);  // rms singular value 1: thresholds below are relative
   Scalar x[9];                                // X, column-major: X(r, c) = x[r + 3c]
   for (int i = 0; i < 9; ++i) x[i] = scale * F.data()[i];
-  const Scalar det = x[0] * (x[4] * x[8] - x[7] * x[5]) - x[3] * (x[1] * x[8] - x[7] * x[2]) +
-                     x[6] * (x[1] * x[5] - x[4] * x[2]);
-  if (!(det > 5e-3)) return detail::rotation_by_svd(Eigen::Map<const Mat3>(x));
+  if (!(detail::determinant(x) > 5e-3)) return detail::rotation_by_svd(Eigen::Map<const Mat3>(x));
   for (int k = 0; k < 40; ++k) {
-    // E = X^T X - I: the Gram matrix of X's columns (symmetric, 6 entries), and |E|_F^2.
-    const Scalar e00 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - 1;
-    const Scalar e11 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5] - 1;
-    const Scalar e22 = x[6] * x[6] + x[7] * x[7] + x[8] * x[8] - 1;
-    const Scalar e01 = x[0] * x[3] + x[1] * x[4] + x[2] * x[5];
-    const Scalar e02 = x[0] * x[6] + x[1] * x[7] + x[2] * x[8];
-    const Scalar e12 = x[3] * x[6] + x[4] * x[7] + x[5] * x[8];
-    const Scalar e2 = e00 * e00 + e11 * e11 + e22 * e22 + 2 * (e01 * e01 + e02 * e02 + e12 * e12);
+    const detail::GramDeviation<Scalar> E(x);
+    const Scalar e2 = E.squared_norm();
     if (e2 < 1.0 / 16) {
-      // Newton-Schulz: X <- X - X E / 2, each row of X times E.
-      for (int r = 0; r < 3; ++r) {
-        const Scalar a = x[r], b = x[r + 3], c = x[r + 6];
-        x[r] = a - 0.5 * (a * e00 + b * e01 + c * e02);
-        x[r + 3] = b - 0.5 * (a * e01 + b * e11 + c * e12);
-        x[r + 6] = c - 0.5 * (a * e02 + b * e12 + c * e22);
-      }
+      E.newton_schulz_step(x);
       if (e2 < 1e-16) return Eigen::Map<const Mat3>(x);
     } else {
       // Scaled Newton (Higham): X <- (g X + X^{-T} / g) / 2, with X^{-T} = cof(X) / det X.
@@ -113,31 +128,15 @@ void rotations_of(const std::array<Mat3, Q>& F, std::array<Mat3, Q>& R) {
     // and |X^T X - I| < 1/4. Other points are replaced by the identity (converged) here.
     const PointArray scale = (norm2 > 0 && norm2.isFinite()).select((3 / norm2).sqrt(), PointArray::Zero());
     for (auto& xi : x) xi *= scale;
-    const PointArray det = x[0] * (x[4] * x[8] - x[7] * x[5]) - x[3] * (x[1] * x[8] - x[7] * x[2]) +
-                           x[6] * (x[1] * x[5] - x[4] * x[2]);
-    PointArray gram = PointArray::Zero();
-    for (int c = 0; c < 3; ++c)
-      for (int d = 0; d < 3; ++d) {
-        const PointArray e = x[3 * c] * x[3 * d] + x[3 * c + 1] * x[3 * d + 1] + x[3 * c + 2] * x[3 * d + 2] - (c == d);
-        gram += e * e;
-      }
+    const PointArray det = detail::determinant(x.data());
+    const PointArray gram = detail::GramDeviation<PointArray>(x.data()).squared_norm();
     const Eigen::Array<bool, Q, 1> alone = !(det > 5e-3 && gram < 1.0 / 16);  // also true for NaN
     for (int i = 0; i < 9; ++i) x[i] = alone.select(PointArray::Constant(i % 4 == 0 ? 1 : 0), x[i]);
     bool converged = false;
     for (int k = 0; k < 40 && !converged; ++k) {
-      const PointArray e00 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - 1;
-      const PointArray e11 = x[3] * x[3] + x[4] * x[4] + x[5] * x[5] - 1;
-      const PointArray e22 = x[6] * x[6] + x[7] * x[7] + x[8] * x[8] - 1;
-      const PointArray e01 = x[0] * x[3] + x[1] * x[4] + x[2] * x[5];
-      const PointArray e02 = x[0] * x[6] + x[1] * x[7] + x[2] * x[8];
-      const PointArray e12 = x[3] * x[6] + x[4] * x[7] + x[5] * x[8];
-      const Scalar e2 = (e00 * e00 + e11 * e11 + e22 * e22 + 2 * (e01 * e01 + e02 * e02 + e12 * e12)).maxCoeff();
-      for (int r = 0; r < 3; ++r) {
-        const PointArray a = x[r], b = x[r + 3], c = x[r + 6];
-        x[r] = a - 0.5 * (a * e00 + b * e01 + c * e02);
-        x[r + 3] = b - 0.5 * (a * e01 + b * e11 + c * e12);
-        x[r + 6] = c - 0.5 * (a * e02 + b * e12 + c * e22);
-      }
+      const detail::GramDeviation<PointArray> E(x.data());
+      const Scalar e2 = E.squared_norm().maxCoeff();
+      E.newton_schulz_step(x.data());
       converged = e2 < 1e-16;  // every point: |E| < 1e-8 before this step, ~1e-16 after
     }
     for (int q = 0; q < Q; ++q) {
