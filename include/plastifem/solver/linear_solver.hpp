@@ -1,21 +1,81 @@
 #pragma once
-// Linear solvers for the symmetric systems of a step: sparse LDLT with the symbolic analysis
-// done once (statics, linear models, very large time steps), and Jacobi-preconditioned
-// conjugate gradients warm-started from the previous solution (the real-time choice: at usual
-// time steps the Newmark matrix is dominated by M / (beta dt^2) and CG needs ~10 iterations).
+// Linear solvers for the symmetric systems of a step: a sparse direct factorisation with the
+// symbolic analysis done once (statics, linear models, very large time steps), and
+// Jacobi-preconditioned conjugate gradients warm-started from the previous solution (the
+// real-time choice: at usual time steps the Newmark matrix is dominated by M / (beta dt^2) and
+// CG needs ~10 iterations).
+//
+// Direct back-ends:
+//  - Eigen's SimplicialLDLT with AMD ordering: always available, no dependency.
+//  - CHOLMOD's supernodal LL^T through Eigen's CholmodSupport module, when the toolkit is built
+//    with it (CMake option PLASTIFEM_WITH_CHOLMOD, on where SuiteSparse is installed; it defines
+//    PLASTIFEM_HAS_CHOLMOD). Supernodes turn the factorisation into dense BLAS-3 blocks: on
+//    bar5760 Hex8 statics (20,280 free dofs) it factorises in 0.48 s against 5.9 s for the
+//    simplicial LDLT, with OpenBLAS on 2 cores (0.75 s on one; 3.4 s with the reference BLAS).
+//    It uses the BLAS threads (OPENBLAS_NUM_THREADS), not SolverSettings::threads.
 #include <plastifem/assembly/block_matrix.hpp>
 
 #include <Eigen/SparseCholesky>
+
+#ifdef PLASTIFEM_HAS_CHOLMOD
+#include <Eigen/CholmodSupport>
+#endif
 
 namespace plastifem {
 
 enum class LinearSolverKind { Direct, ConjugateGradient };
 
+/// Which sparse factorisation LinearSolverKind::Direct uses.
+enum class DirectSolver {
+  Auto,               ///< CHOLMOD where built in, else SimplicialLDLT
+  SimplicialLDLT,     ///< Eigen's, built in
+  CholmodSupernodal,  ///< CHOLMOD supernodal LL^T (needs PLASTIFEM_HAS_CHOLMOD)
+};
+
+/// Whether the toolkit was built with CHOLMOD (PLASTIFEM_WITH_CHOLMOD).
+constexpr bool cholmod_available() {
+#ifdef PLASTIFEM_HAS_CHOLMOD
+  return true;
+#else
+  return false;
+#endif
+}
+
+/// The back-end `Auto` resolves to, and a check that an explicit choice is built in.
+inline DirectSolver resolve_direct_solver(DirectSolver d) {
+  if (d == DirectSolver::Auto) return cholmod_available() ? DirectSolver::CholmodSupernodal : DirectSolver::SimplicialLDLT;
+  if (d == DirectSolver::CholmodSupernodal && !cholmod_available())
+    fail<InvalidArgument>("DirectSolver::CholmodSupernodal: this build has no CHOLMOD; install SuiteSparse "
+                          "(Debian: libsuitesparse-dev) and configure with -DPLASTIFEM_WITH_CHOLMOD=ON, or use "
+                          "DirectSolver::Auto / SimplicialLDLT");
+  return d;
+}
+
+inline const char* direct_solver_name(DirectSolver d) {
+  switch (resolve_direct_solver(d)) {
+    case DirectSolver::CholmodSupernodal: return "CHOLMOD";
+    default: return "LDLT";
+  }
+}
+
 struct LinearSolverSettings {
   LinearSolverKind kind = LinearSolverKind::ConjugateGradient;
   Scalar tolerance = 1e-8;    ///< CG: stop when |r| <= tolerance |b|
   int max_iterations = 2000;  ///< CG: iteration cap (real-time mode may set it low)
+  DirectSolver direct = DirectSolver::Auto;  ///< Direct: the factorisation
 };
+
+#ifdef PLASTIFEM_HAS_CHOLMOD
+namespace detail {
+/// CHOLMOD's supernodal LL^T, quiet (failures become SolverError) and with its pivot ratio.
+class CholmodLLT : public Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower> {
+ public:
+  CholmodLLT() { this->cholmod().print = 0; }
+  /// min diag(L) / max diag(L) of the last factorisation.
+  double rcond() { return cholmod_rcond(this->m_cholmodFactor, &this->cholmod()); }
+};
+}  // namespace detail
+#endif
 
 struct LinearSolveReport {
   int iterations = 0;
@@ -49,34 +109,60 @@ class LinearSolver {
 
  private:
   LinearSolveReport solve_direct(const BlockSymmetricMatrix& block, const Vector& b, Vector& x, bool same_matrix) {
-    if (same_matrix && factorised_) {
-      x = ldlt_.solve(b);
-      LinearSolveReport r;
-      r.iterations = 0;  // no factorisation, one pair of triangular solves
+    const bool cholmod = resolve_direct_solver(settings_.direct) == DirectSolver::CholmodSupernodal;
+    LinearSolveReport r;
+    r.iterations = 0;  // reused factorisation: one pair of triangular solves
+    if (!(same_matrix && factorised_)) {
+      block.copy_to(csc_);  // both read a CSC matrix (its lower triangle)
+      factorised_ = false;
+      if (cholmod) factorise_cholmod();
+      else factorise_ldlt();
+      factorised_ = true;
+      r.iterations = 1;
+    }
+#ifdef PLASTIFEM_HAS_CHOLMOD
+    if (cholmod) {
+      x = cholmod_->solve(b);
       return r;
     }
-    block.copy_to(csc_);  // Eigen's LDLT reads a CSC matrix (its lower triangle)
-    const SparseMatrix& A = csc_;
+#endif
+    x = ldlt_.solve(b);
+    return r;
+  }
+
+  /// A zero or sign-changed pivot means the system is singular or indefinite (e.g. a body that
+  /// is free to move rigidly in a static solve, or an exact tangent under compression).
+  [[noreturn]] static void singular(Scalar smallest, Scalar largest, const char* what) {
+    fail<SolverError>("the system matrix is singular or indefinite (smallest {} {:.3g}, largest {:.3g}): check that "
+                      "boundary conditions prevent rigid-body motion",
+                      what, smallest, largest);
+  }
+
+  void factorise_ldlt() {
     if (!analysed_) {
-      ldlt_.analyzePattern(A);
+      ldlt_.analyzePattern(csc_);
       analysed_ = true;
-      factorised_ = false;
     }
-    factorised_ = false;
-    ldlt_.factorize(A);
-    // A zero or sign-changed pivot means the system is singular or indefinite (e.g. a body
-    // that is free to move rigidly in a static solve).
+    ldlt_.factorize(csc_);
     const auto D = ldlt_.vectorD();
     const Scalar dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt_.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax))
-      fail<SolverError>("the system matrix is singular or indefinite (smallest LDLT pivot {:.3g}, largest {:.3g}): "
-                        "check that boundary conditions prevent rigid-body motion",
-                        D.minCoeff(), dmax);
-    factorised_ = true;
-    x = ldlt_.solve(b);
-    LinearSolveReport r;
-    r.iterations = 1;
-    return r;
+    if (ldlt_.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax)) singular(D.minCoeff(), dmax, "LDLT pivot");
+  }
+
+  void factorise_cholmod() {
+#ifdef PLASTIFEM_HAS_CHOLMOD
+    if (!cholmod_) cholmod_ = std::make_unique<detail::CholmodLLT>();
+    if (!analysed_) {
+      cholmod_->analyzePattern(csc_);
+      analysed_ = true;
+    }
+    cholmod_->factorize(csc_);
+    // LL^T fails at the first non-positive pivot; a positive but tiny one is caught by
+    // rcond = min diag(L) / max diag(L), whose square is LDLT's pivot ratio (same 1e-12 bound).
+    if (cholmod_->info() != Eigen::Success) singular(-1, 1, "CHOLMOD pivot ratio (not positive definite)");
+    const Scalar rcond = cholmod_->rcond();
+    if (!(rcond * rcond > 1e-12)) singular(rcond * rcond, 1, "CHOLMOD pivot ratio");
+#endif
   }
 
   LinearSolveReport solve_cg(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance) {
@@ -127,6 +213,9 @@ class LinearSolver {
 
   LinearSolverSettings settings_;
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt_;
+#ifdef PLASTIFEM_HAS_CHOLMOD
+  std::unique_ptr<detail::CholmodLLT> cholmod_;  // created on first use (its cholmod_common)
+#endif
   SparseMatrix csc_;
   bool analysed_ = false, factorised_ = false;
   int threads_ = 1;

@@ -18,6 +18,7 @@
 // Initial acceleration from equilibrium: M a_0 = f_ext(0) - f_int(u_0) - D v_0, unless given.
 // A step that fails (no convergence, NaN, singular system) throws SolverError and leaves the
 // state exactly as it was: all work happens in scratch vectors, committed at the end.
+#include <plastifem/assembly/mass.hpp>
 #include <plastifem/elastic/elastic.hpp>
 #include <plastifem/enrichment/none.hpp>
 #include <plastifem/mesh/selection.hpp>
@@ -32,7 +33,6 @@
 
 namespace plastifem {
 
-enum class MassKind { Consistent, Lumped };
 enum class NewmarkMode { Accurate, RealTime };
 
 struct NewtonSettings {
@@ -81,6 +81,7 @@ struct SolverSettings {
   NewmarkSettings newmark;
   NewtonSettings newton;
   LinearSolverSettings linear;  ///< dynamics (default: warm-started Jacobi CG, 1e-8)
+  /// statics (default: the direct solver, CHOLMOD where built in, else SimplicialLDLT)
   LinearSolverSettings static_linear{LinearSolverKind::Direct};
   Scalar rayleigh_mass = 0, rayleigh_stiffness = 0;  ///< D = alpha M + beta K
   /// Threads for element loops and products: 1 by default (predictable; on small scenes and
@@ -162,16 +163,7 @@ class Solver {
   /// Body force per unit mass (gravity), as consistent nodal loads rho int N_a g dV.
   void add_gravity(const Vec3& g, LoadCurve curve = {}) {
     check_finite(g, "gravity");
-    Vector F = Vector::Zero(num_dofs());
-    const auto q = E::template quadrature<E::mass_degree>();
-    for (Index e = 0; e < mesh_.num_elements(); ++e) {
-      const ElementNodes<E> X = mesh_.element_nodes(e);
-      for (int k = 0; k < q.size; ++k) {
-        const Scalar dm = material_.density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
-        const auto Nk = E::shape(q.points[k]);
-        for (int a = 0; a < N; ++a) F.segment<3>(3 * mesh_.element(e)[a]) += dm * Nk[a] * g;
-      }
-    }
+    Vector F = body_force_load(mesh_, material_.density, g);
     loads_.push_back({std::move(F), std::move(curve), "gravity"});
     initial_acceleration_known_ = false;
   }
@@ -591,6 +583,8 @@ class Solver {
       fail<InvalidArgument>("Newton needs a positive tolerance and at least one iteration");
     if (!(s.linear.tolerance > 0) || s.linear.max_iterations < 1)
       fail<InvalidArgument>("CG needs a positive tolerance and at least one iteration");
+    resolve_direct_solver(s.linear.direct);  // a back-end this build lacks: a clear error now
+    resolve_direct_solver(s.static_linear.direct);
   }
   void check_nodes(std::span<const Index> nodes, const char* what) const {
     for (Index i : nodes)
@@ -711,29 +705,7 @@ class Solver {
     }
   }
 
-  void build_mass() {
-    M_ = assembler_.zero_matrix();
-    Scalar* values = M_.values();
-    const auto q = E::template quadrature<E::mass_degree>();
-    Eigen::Matrix<Scalar, N, N> Me;
-    for (Index e = 0; e < mesh_.num_elements(); ++e) {
-      const ElementNodes<E> X = mesh_.element_nodes(e);
-      Me.setZero();
-      for (int k = 0; k < q.size; ++k) {
-        const auto Nk = E::shape(q.points[k]);
-        Me += (material_.density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant()) * Nk * Nk.transpose();
-      }
-      if (settings_.mass == MassKind::Lumped) {
-        // HRZ lumping: the diagonal scaled to keep the element mass; positive for Tet10, whose
-        // row sums would give negative corner masses.
-        const Scalar total = Me.sum(), diag = Me.diagonal().sum();
-        const Eigen::Matrix<Scalar, N, 1> d = Me.diagonal() * (total / diag);
-        Me.setZero();
-        Me.diagonal() = d;
-      }
-      assembler_.add_element_scalar_matrix(e, Me, values);
-    }
-  }
+  void build_mass() { assemble_mass(mesh_, assembler_, material_.density, settings_.mass, M_); }
 
   void external_force(Scalar t, Vector& f) const {
     f.setZero();
