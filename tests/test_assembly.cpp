@@ -138,6 +138,30 @@ TEST_CASE("block-symmetric matrix: assembly, product, diagonal, sum and CSC copy
   CHECK((Eigen::MatrixXd(S2) - Eigen::MatrixXd(S)).cwiseAbs().sum() == Approx(1.0));
 }
 
+TEST_CASE("constrained rows and columns become identity, exactly as on the dense matrix", "[assembly][dirichlet]") {
+  const auto mesh = bar_mesh<Tet4>(4, 2, 2);
+  const Assembler<Tet4> assembler(mesh);
+  BlockSymmetricMatrix A = assembler.zero_matrix();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<Scalar> u(-1, 1);
+  for (Index i = 0; i < A.num_values(); ++i) A.values()[i] = u(rng);
+  Eigen::MatrixXd dense = A.to_sparse();
+  const Index n = A.rows();
+  // Whole nodes and single components (a sliding support), scattered over the numbering.
+  std::vector<char> c(n, 0);
+  for (Index d = 0; d < n; d += 7) c[d] = 1;
+  for (Index i : mesh.node_set("xmin")) c[3 * i] = c[3 * i + 1] = c[3 * i + 2] = 1;
+  for (Index r = 0; r < n; ++r)
+    for (Index k = 0; k < n; ++k)
+      if (c[r] || c[k]) dense(r, k) = r == k ? 1.0 : 0.0;
+  const ConstrainedBlocks cb(A.pattern(), c);
+  cb.apply(A);
+  CHECK((Eigen::MatrixXd(A.to_sparse()) - dense).norm() == 0);
+  Vector b = Vector::Ones(n);
+  cb.zero(b);
+  for (Index d = 0; d < n; ++d) CHECK(b[d] == (c[d] ? 0.0 : 1.0));
+}
+
 TEST_CASE("threaded block product equals the serial one to round-off on a large pattern", "[assembly][threads]") {
   // Above the threading threshold (3000 blocks): bar720-size Hex8.
   const auto mesh = bar_mesh<Hex8>(20, 6, 6);

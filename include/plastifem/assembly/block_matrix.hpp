@@ -17,6 +17,7 @@
 
 #include <Eigen/SparseCore>
 #include <algorithm>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -245,6 +246,54 @@ class BlockSymmetricMatrix {
   mutable std::vector<Vector> buffers_;
   mutable std::vector<int> csc_outer_, csc_inner_;
   mutable std::vector<size_t> csc_from_;
+};
+
+/// Dirichlet conditions on a system matrix: the rows and columns of constrained dofs become
+/// identity (A stays symmetric; the increment there is then the right-hand side's zero). The
+/// blocks a constrained dof touches are found once from the pattern, so each application costs
+/// O(those blocks) instead of a pass over the whole matrix (bar5760 clamped at x = 0: 2.7% of
+/// the blocks).
+class ConstrainedBlocks {
+ public:
+  ConstrainedBlocks() = default;
+  /// `constrained[d]` != 0 for each constrained dof d.
+  ConstrainedBlocks(const BlockPattern& p, const std::vector<char>& constrained) {
+    for (Index I = 0; I < p.num_block_rows; ++I)
+      for (int k = p.row_start[I]; k < p.row_start[I + 1]; ++k) {
+        const Index J = p.column[k];
+        std::uint16_t mask = 0;  // bit 3 i + j: entry (i, j) of the block is replaced
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            if (constrained[3 * I + i] || constrained[3 * J + j]) mask |= std::uint16_t(1u << (3 * i + j));
+        if (mask) blocks_.push_back({k, mask, I == J});
+      }
+    for (size_t d = 0; d < constrained.size(); ++d)
+      if (constrained[d]) dofs_.push_back(static_cast<Index>(d));
+  }
+
+  /// Rows and columns of the constrained dofs of A become identity.
+  void apply(BlockSymmetricMatrix& A) const {
+    Scalar* val = A.values();
+    for (const Block& b : blocks_) {
+      Scalar* B = val + 9 * static_cast<size_t>(b.index);
+      for (int e = 0; e < 9; ++e)
+        if (b.mask & (1u << e)) B[e] = (b.diagonal && e % 4 == 0) ? 1.0 : 0.0;
+    }
+  }
+  /// v = 0 at the constrained dofs.
+  void zero(Vector& v) const {
+    for (Index d : dofs_) v[d] = 0;
+  }
+  const std::vector<Index>& dofs() const { return dofs_; }
+
+ private:
+  struct Block {
+    int index;             ///< the block's position in the pattern
+    std::uint16_t mask;    ///< entries to replace
+    bool diagonal;         ///< a diagonal block (I == J): its replaced diagonal entries become 1
+  };
+  std::vector<Block> blocks_;
+  std::vector<Index> dofs_;
 };
 
 }  // namespace plastifem

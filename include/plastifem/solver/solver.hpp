@@ -18,6 +18,7 @@
 // Initial acceleration from equilibrium: M a_0 = f_ext(0) - f_int(u_0) - D v_0, unless given.
 // A step that fails (no convergence, NaN, singular system) throws SolverError and leaves the
 // state exactly as it was: all work happens in scratch vectors, committed at the end.
+#include <plastifem/assembly/element_data.hpp>
 #include <plastifem/assembly/mass.hpp>
 #include <plastifem/elastic/elastic.hpp>
 #include <plastifem/enrichment/none.hpp>
@@ -104,11 +105,10 @@ class Solver {
   static constexpr int N = E::num_nodes;
 
   Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings = {})
-      : mesh_(mesh), material_(material.validated()), settings_(settings), assembler_(mesh),
-        linear_(settings.linear), static_linear_(settings.static_linear) {
-    validate_settings(settings_);
-    prepare_element_data();
+      : mesh_(mesh), material_(material.validated()), settings_(validated(settings)), assembler_(mesh),
+        data_(mesh_, material_), linear_(settings.linear), static_linear_(settings.static_linear) {
     const Index n = num_dofs();
+    element_energy_.assign(mesh_.num_elements(), 0.0);
     u_ = v_ = a_ = Vector::Zero(n);
     constrained_.assign(n, 0);
     build_mass();
@@ -146,6 +146,7 @@ class Solver {
     for (Index i : nodes)
       for (int d = 0; d < 3; ++d)
         if (mask[d]) constrained_[3 * i + d] = 1;
+    constrained_blocks_current_ = false;
     initial_acceleration_known_ = false;
     system_coefficients_ = {0.0, 0.0};  // the constrained rows of the system change
   }
@@ -560,7 +561,7 @@ class Solver {
   bool is_constrained(Index dof) const { return constrained_[dof] != 0; }
   /// Number of distinct element shapes (elements that are translated copies share their
   /// precomputed data: one for a structured Hex8 grid, six for its Kuhn Tet4 split).
-  Index num_element_shapes() const { return static_cast<Index>(data_.size()); }
+  Index num_element_shapes() const { return data_.num_shapes(); }
 
  private:
   /// Threads for element loops and matrix products (settings().threads, 0: OpenMP's default).
@@ -570,6 +571,10 @@ class Solver {
     static_linear_.set_threads(threads());
   }
 
+  static SolverSettings validated(const SolverSettings& s) {
+    validate_settings(s);
+    return s;
+  }
   static void validate_settings(const SolverSettings& s) {
     const auto& nm = s.newmark;
     if (!(nm.gamma >= 0.5) || !(nm.beta >= 0.25 * (0.5 + nm.gamma) * (0.5 + nm.gamma) - 1e-15) || nm.beta > 0.5)
@@ -598,29 +603,7 @@ class Solver {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   }
 
-  const Data& data(Index e) const { return data_[data_of_[e]]; }
-
-  /// Prepares each distinct element shape once. Elements whose rest positions relative to
-  /// their first node are equal bit for bit (translated copies: every cell of a structured
-  /// grid) share one ElementData, since the models difference positions relative to node 0
-  /// and their precomputed data (K0, gradients, weights) depends only on that shape. A
-  /// structured bar keeps one 24 x 24 K0 instead of one per hex (bar46080
-  /// CorotationalPerElement: 403 -> 190 MB) and streams it from cache instead of memory.
-  void prepare_element_data() {
-    const Index ne = mesh_.num_elements();
-    std::map<std::vector<Scalar>, std::uint32_t> shape_index;
-    data_of_.resize(ne);
-    element_energy_.assign(ne, 0.0);
-    for (Index e = 0; e < ne; ++e) {
-      const ElementNodes<E> X0 = mesh_.element_nodes(e);
-      const ElementNodes<E> rel = X0.colwise() - X0.col(0);
-      auto [it, inserted] =
-          shape_index.try_emplace(std::vector<Scalar>(rel.data(), rel.data() + rel.size()), static_cast<std::uint32_t>(data_.size()));
-      if (inserted) data_.push_back(Elastic::template prepare<E>(X0, material_));
-      data_of_[e] = it->second;
-    }
-    data_.shrink_to_fit();
-  }
+  const Data& data(Index e) const { return data_[e]; }
 
   ElementNodes<E> current_nodes(Index e, const Vector& u) const {
     ElementNodes<E> x;
@@ -813,20 +796,15 @@ class Solver {
   }
 
   /// Constrained dofs: the increment is zero there (u already holds the prescribed value), so
-  /// rows and columns become identity and the right-hand side zero. Keeps A symmetric.
-  void apply_dirichlet(BlockSymmetricMatrix& A, Vector& b) const {
-    const auto& p = A.pattern();
-    Scalar* val = A.values();
-    for (Index I = 0; I < p.num_block_rows; ++I)
-      for (int k = p.row_start[I]; k < p.row_start[I + 1]; ++k) {
-        const Index J = p.column[k];
-        Scalar* B = val + 9 * static_cast<size_t>(k);
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            if (constrained_[3 * I + i] || constrained_[3 * J + j]) B[3 * i + j] = (I == J && i == j) ? 1.0 : 0.0;
-      }
-    for (Index i = 0; i < num_dofs(); ++i)
-      if (constrained_[i]) b[i] = 0;
+  /// rows and columns become identity and the right-hand side zero. Keeps A symmetric. The
+  /// touched blocks are found once per change of the constraints.
+  void apply_dirichlet(BlockSymmetricMatrix& A, Vector& b) {
+    if (!constrained_blocks_current_) {
+      constrained_blocks_ = ConstrainedBlocks(A.pattern(), constrained_);
+      constrained_blocks_current_ = true;
+    }
+    constrained_blocks_.apply(A);
+    constrained_blocks_.zero(b);
   }
 
   /// Backtracking on |r| along du (force-only evaluations): the first halved step that
@@ -938,12 +916,13 @@ class Solver {
   Material material_;
   SolverSettings settings_;
   Assembler<E> assembler_;
-  std::vector<Data> data_;               ///< one per distinct element shape
-  std::vector<std::uint32_t> data_of_;  ///< element -> its shape's entry in data_
+  ElementDataTable<E, Elastic> data_;  ///< prepared once, shared by translated copies
   LinearSolver linear_, static_linear_;
   std::vector<DirichletCondition> dirichlet_;
   std::vector<ExternalLoad> loads_;
   std::vector<char> constrained_;
+  ConstrainedBlocks constrained_blocks_;  ///< where constrained_ touches the system matrix
+  bool constrained_blocks_current_ = false;
   BlockSymmetricMatrix M_, K_, A_;
   bool K_assembled_ = false;
   /// (mass, stiffness) coefficients of the system matrix in A_ for a constant-tangent model;
