@@ -2,7 +2,10 @@
 # plastifem set-up: installs missing Debian packages, configures, builds, then runs
 #   bash cmake/setup.sh example   the flagship example (writes VTU/PVD into build/out/)
 #   bash cmake/setup.sh test      the whole test suite through ctest
-#   bash cmake/setup.sh bench     the benchmark suite (tables + CSV into build/bench/)
+#   bash cmake/setup.sh bench [step|static|policy] [options]
+#                                 a benchmark (tables + CSV into build/bench/): ms per Newmark
+#                                 step (default), per static solve, or the NoPlasticity /
+#                                 NoEnrichment overhead ratio
 #   bash cmake/setup.sh study     the accuracy-vs-cost study (docs/study.md): CSV into build/bench/,
 #                                 plot into docs/speed_accuracy.png (~13 min, single-threaded)
 # Environment: BUILD_DIR (default build), JOBS (default: number of cores).
@@ -37,9 +40,12 @@ case "$what" in
     cmake --build "$build" -j "$jobs"
     ctest --test-dir "$build" --output-on-failure -j "$jobs" ;;
   bench)
-    cmake --build "$build" -j "$jobs" --target bench_step
+    which=step; args=("${@:2}")
+    case "${2:-}" in step|static|policy) which=$2; args=("${@:3}") ;; esac
+    target=bench_$which; [ "$which" = policy ] && target=bench_policy_overhead
+    cmake --build "$build" -j "$jobs" --target "$target"
     mkdir -p "$build/bench"
-    "$build/bench/bench_step" --csv "$build/bench/step.csv" "${@:2}" ;;
+    "$build/bench/$target" --csv "$build/bench/$which.csv" "${args[@]}" ;;
   study)
     cmake --build "$build" -j "$jobs" --target study_accuracy
     mkdir -p "$build/bench"

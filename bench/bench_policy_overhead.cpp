@@ -1,0 +1,144 @@
+// What the plastic and enrichment axes cost a scene that uses neither: the Solver
+// Solver<E, Model, NoPlasticity, NoEnrichment> against the same elastic Newmark step composed
+// by hand from the same parts without the policy parameters (Assembler, ElementDataTable,
+// the model's evaluate, assemble_mass, body_force_load, ConstrainedBlocks, LinearSolver).
+//
+// The baseline, BareNewmark below, performs the Solver's real-time step operation for
+// operation (one linearised solve per step at u_n, warm-started Jacobi CG, the same residual
+// checks and commit), so both produce the same displacements bit for bit: the benchmark checks
+// that, so a baseline that drifted from the Solver (and would measure something else) fails
+// loudly instead of reporting a ratio. Whatever the Solver does beyond it for its policy axes
+// shows as a ratio above 1; NoPlasticity / NoEnrichment must compile away: 1.00 +- 0.03.
+//
+// Steps of the two alternate (Solver step k, bare step k, ...), so that a change of machine
+// load affects both; the ratio is the median of the per-step ratios over `--steps` steps after
+// 5 warm-up steps, reported with its interquartile range.
+//
+//   bench_policy_overhead [--scenes bar720,bar5760] [--threads 1] [--steps 100] [--csv FILE]
+#include "bare_newmark.hpp"
+
+#include <plastifem/plastifem.hpp>
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+using namespace plastifem;
+using plastifem::bench::BareNewmark;
+
+namespace {
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
+  return out;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+double quantile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(q * static_cast<double>(v.size() - 1))];
+}
+
+struct Row {
+  std::string scene, element, model;
+  int threads;
+  double solver_ms, bare_ms, ratio, ratio_q1, ratio_q3;
+  Scalar max_difference;
+};
+
+template <class E, class Model>
+Row measure(const std::string& scene, int threads, int steps) {
+  const auto [nx, ny, nz] = bar_scene_cells(scene);
+  const auto mesh = bar_mesh<E>(nx, ny, nz);
+  const Material material{3000, 0.45, 1.0};
+  const LinearSolverSettings cg{LinearSolverKind::ConjugateGradient, 1e-6, 1000};
+#ifdef _OPENMP
+  omp_set_num_threads(threads);
+#endif
+  SolverSettings st;
+  st.linear = cg;
+  st.newmark.mode = NewmarkMode::RealTime;
+  st.threads = threads;
+  Solver<E, Model, NoPlasticity, NoEnrichment> solver(mesh, material, st);
+  solver.fix(mesh.node_set("xmin"));
+  solver.add_gravity(Vec3(0, 0, -9.81));
+  BareNewmark<E, Model> bare(mesh, material, mesh.node_set("xmin"), Vec3(0, 0, -9.81), cg, threads);
+  using clock = std::chrono::steady_clock;
+  auto ms = [](clock::time_point t0) { return std::chrono::duration<double, std::milli>(clock::now() - t0).count(); };
+  std::vector<double> ts, tb, ratio;
+  for (int k = 1; k <= steps + 5; ++k) {
+    auto t0 = clock::now();
+    solver.step(0.01);
+    const double a = ms(t0);
+    t0 = clock::now();
+    bare.step(0.01);
+    const double b = ms(t0);
+    if (k > 5) ts.push_back(a), tb.push_back(b), ratio.push_back(a / b);
+  }
+  if (!(bare.force_scale() > 0)) fail<Error>("bare step: no force scale");
+  const Scalar diff = (solver.displacement() - bare.displacement()).cwiseAbs().maxCoeff();
+  if (diff != 0)
+    fail<Error>("{} {} {}: the bare baseline no longer reproduces the Solver's step (max |u difference| {:.3g} "
+                "after {} steps); it must mirror Solver::newmark_attempt's real-time branch",
+                scene, E::name, Model::name, diff, steps + 5);
+  return {scene, E::name, Model::name, threads, median(ts), median(tb), median(ratio), quantile(ratio, 0.25),
+          quantile(ratio, 0.75), diff};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) try {
+  std::vector<std::string> scenes{"bar720", "bar5760"};
+  std::vector<int> threads{1};
+  int steps = 100;
+  std::string csv = "policy_overhead.csv";
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i + 1 < argc && a == "--scenes") scenes = split(argv[++i]);
+    else if (i + 1 < argc && a == "--steps") steps = std::max(10, std::stoi(argv[++i]));
+    else if (i + 1 < argc && a == "--csv") csv = argv[++i];
+    else if (i + 1 < argc && a == "--threads") {
+      threads.clear();
+      for (const auto& t : split(argv[++i])) threads.push_back(std::stoi(t));
+    } else fail<InvalidArgument>("unknown option '{}'", a);
+  }
+  std::ofstream out(csv);
+  out << "scene,element,model,threads,solver_ms,bare_ms,ratio_median,ratio_q1,ratio_q3,max_u_difference\n";
+  fmt::print("Solver<E, Model, NoPlasticity, NoEnrichment> against the same step without policy parameters\n"
+             "(real time, CG 1e-6; ratio = median of per-step ratios over {} alternating steps, [q1, q3])\n\n",
+             steps);
+  fmt::print("{:9} {:5} {:24} {:>3} {:>10} {:>10} {:>7} {:>16} {:>9}\n", "scene", "elem", "model", "thr", "Solver ms",
+             "bare ms", "ratio", "[q1, q3]", "|du|max");
+  auto emit = [&](const Row& r) {
+    fmt::print("{:9} {:5} {:24} {:>3} {:>10.3f} {:>10.3f} {:>7.3f}   [{:.3f}, {:.3f}] {:>9.1e}\n", r.scene, r.element,
+               r.model, r.threads, r.solver_ms, r.bare_ms, r.ratio, r.ratio_q1, r.ratio_q3, r.max_difference);
+    out << fmt::format("{},{},{},{},{:.6f},{:.6f},{:.4f},{:.4f},{:.4f},{:.3g}\n", r.scene, r.element, r.model, r.threads,
+                       r.solver_ms, r.bare_ms, r.ratio, r.ratio_q1, r.ratio_q3, r.max_difference);
+    out.flush();
+    std::fflush(stdout);
+  };
+  for (const auto& scene : scenes)
+    for (int t : threads) {
+      emit(measure<Hex8, CorotationalPerElement>(scene, t, steps));
+      emit(measure<Hex8, Corotational>(scene, t, steps));
+      emit(measure<Tet4, Corotational>(scene, t, steps));
+    }
+  fmt::print("CSV written to {}\n", csv);
+  return 0;
+} catch (const std::exception& e) {
+  fmt::print(stderr, "bench_policy_overhead: {}\n", e.what());
+  return 1;
+}
