@@ -7,10 +7,16 @@
 // in the value array (and whether it lands transposed), so a re-assembly writes straight into
 // memory: no search, no allocation.
 //
-// Threads: elements are greedily coloured so that no two elements of one colour share a node;
-// colours run one after the other, the elements of a colour in parallel. Each matrix entry then
-// receives its contributions in the same order whatever the thread count, so results are
-// bit-identical from 1 to N threads, with no atomics and no critical sections.
+// Order and threads: elements are cut into chunks of consecutive indices (about 1/256 of the
+// mesh each, at least 16 elements), and the chunks are greedily coloured so that no two chunks
+// of one colour share a node. Colours run one after the other, the chunks of a colour in
+// parallel, the elements of a chunk in index order. Each matrix entry then receives its
+// contributions in the same order whatever the thread count, so results are bit-identical
+// from 1 to N threads, with no atomics and no critical sections; and consecutive elements
+// (neighbours, in a mesh numbered with any spatial coherence: the generators, Gmsh) touch the
+// same matrix rows, which stay in cache. Colouring single elements instead spread each colour
+// over the whole mesh, so every element's scatter missed the cache: bar5760 Tet4 spent 50% of
+// its assembly waiting on the block offsets and matrix values.
 #include <plastifem/assembly/block_matrix.hpp>
 #include <plastifem/core/error.hpp>
 #include <plastifem/mesh/mesh.hpp>
@@ -49,20 +55,23 @@ class Assembler {
   Index num_dofs() const { return 3 * num_nodes_; }
   /// A matrix with the system's structure and all values zero.
   BlockSymmetricMatrix zero_matrix() const { return BlockSymmetricMatrix(pattern_); }
-  const std::vector<std::vector<Index>>& colours() const { return colours_; }
+  /// Number of chunk colours (parallel phases of an element loop).
+  Index num_colours() const { return static_cast<Index>(colours_.size()); }
 
-  /// Runs body(e) for every element, colour by colour, in parallel within a colour.
+  /// Runs body(e) for every element: colour by colour, the chunks of a colour in parallel, the
+  /// elements of a chunk in index order (the same order for any thread count).
   template <class Body>
   void for_each_element(Body&& body, int threads = 0) const {
     for (const auto& colour : colours_) {
       const Index n = static_cast<Index>(colour.size());
 #ifdef _OPENMP
       const int t = threads > 0 ? threads : omp_get_max_threads();
-#pragma omp parallel for schedule(static) num_threads(t) if (t > 1 && n > 64)
+#pragma omp parallel for schedule(static) num_threads(t) if (t > 1 && n > 1 && n * chunk_size_ > 64)
 #else
       (void)threads;
 #endif
-      for (Index i = 0; i < n; ++i) body(colour[i]);
+      for (Index i = 0; i < n; ++i)
+        for (Index e = colour[i].first; e < colour[i].second; ++e) body(e);
     }
   }
 
@@ -119,24 +128,30 @@ class Assembler {
   }
 
   void build_colours(const Mesh<E>& mesh) {
-    std::vector<std::uint64_t> node_colours(num_nodes_, 0);  // bit k: a colour-k element uses this node
-    std::vector<int> colour_of(mesh.num_elements());
-    for (Index e = 0; e < mesh.num_elements(); ++e) {
+    const Index ne = mesh.num_elements();
+    chunk_size_ = std::max<Index>(16, ne / 256);
+    std::vector<std::uint64_t> node_colours(num_nodes_, 0);  // bit k: a colour-k chunk uses this node
+    for (Index begin = 0; begin < ne; begin += chunk_size_) {
+      const Index end = std::min(ne, begin + chunk_size_);
       std::uint64_t used = 0;
-      for (Index i : mesh.element(e)) used |= node_colours[i];
-      if (~used == 0) fail<MeshError>("element {}: more than 64 element colours needed (a node shared by too many elements)", e);
+      for (Index e = begin; e < end; ++e)
+        for (Index i : mesh.element(e)) used |= node_colours[i];
+      if (~used == 0)
+        fail<MeshError>("elements {}..{}: more than 64 chunk colours needed (a node shared by too many elements)",
+                        begin, end - 1);
       const int k = std::countr_one(used);
-      colour_of[e] = k;
-      for (Index i : mesh.element(e)) node_colours[i] |= std::uint64_t{1} << k;
+      for (Index e = begin; e < end; ++e)
+        for (Index i : mesh.element(e)) node_colours[i] |= std::uint64_t{1} << k;
       if (k >= static_cast<int>(colours_.size())) colours_.resize(k + 1);
-      colours_[k].push_back(e);
+      colours_[k].push_back({begin, end});
     }
   }
 
   Index num_nodes_ = 0;
   std::shared_ptr<const BlockPattern> pattern_;
   std::vector<int> block_base_;  // [e][b][a]: value index of block (n_a, n_b) if n_a >= n_b, else -1
-  std::vector<std::vector<Index>> colours_;
+  std::vector<std::vector<std::pair<Index, Index>>> colours_;  // [colour]: chunks [begin, end)
+  Index chunk_size_ = 16;
 };
 
 }  // namespace plastifem
