@@ -104,46 +104,100 @@ inline Mat3 rotation_of(const Mat3& F) {
   return detail::rotation_by_svd(Eigen::Map<const Mat3>(x));  // not reached for det X > 5e-3
 }
 
-/// The rotations of Q deformation gradients at once (the quadrature points of one element):
-/// rotation_of's Newton-Schulz iteration run in lockstep, each of the nine components of X an
-/// array over the points, so the arithmetic vectorises across points and their dependency
-/// chains overlap. A point that needs the scaled-Newton or SVD branch (stretch beyond about
-/// 12%, near-singular or inverted F) is left out of the lockstep and done by rotation_of.
-/// Agrees with rotation_of to round-off: a point whose iteration has converged takes the
-/// others' remaining steps, which leave X fixed to ~1e-16. Hex8 (8 points): 8 x 98 -> 190 ns
-/// in all at 5% strain.
+/// One value per quadrature point of an element: the SIMD lane of the point-batched kernels.
+template <int Q>
+using PointArray = Eigen::Array<Scalar, Q, 1>;
+/// A 3x3 matrix field over Q points, component-wise: m[r + 3c](q) = M_q(r, c) (column-major).
+template <int Q>
+using PointMat3 = std::array<PointArray<Q>, 9>;
+
+/// The rotations of Q deformation gradients at once (the quadrature points of one element),
+/// component-wise: F[r + 3c](q) = F_q(r, c), and R likewise. rotation_of's Newton-Schulz
+/// iteration runs in lockstep, each of the nine components of X an array over the points, so
+/// the arithmetic vectorises across points and their dependency chains overlap. A point that
+/// needs the scaled-Newton or SVD branch (stretch beyond about 12%, near-singular or inverted
+/// F) is left out of the lockstep and done by rotation_of. Agrees with rotation_of to
+/// round-off: a point whose iteration has converged takes the others' remaining steps, which
+/// leave X fixed to ~1e-16. Hex8 (8 points): 8 x 98 -> 190 ns in all at 5% strain.
+template <int Q>
+void rotations_of(const PointMat3<Q>& F, PointMat3<Q>& R) {
+  // Plain lane loops over fixed-size arrays: the compiler turns each into a few SIMD
+  // instructions. (Written with Eigen arrays, the 8-lane temporaries went through the stack in
+  // 128-bit halves and were reloaded as 256-bit vectors: store-forwarding stalls that made
+  // this 3x slower.)
+  alignas(64) Scalar x[9][Q];
+  Scalar norm2[Q], det[Q], gram[Q];
+  bool alone[Q];
+  for (int q = 0; q < Q; ++q) norm2[q] = 0;
+  for (int i = 0; i < 9; ++i)
+    for (int q = 0; q < Q; ++q) norm2[q] += F[i](q) * F[i](q);
+  // Scaled to rms singular value 1, then the same entry tests as rotation_of: det X > 5e-3
+  // and |X^T X - I| < 1/4. Other points are replaced by the identity (converged) here.
+  for (int q = 0; q < Q; ++q) norm2[q] = (norm2[q] > 0 && std::isfinite(norm2[q])) ? std::sqrt(3 / norm2[q]) : 0.0;
+  for (int i = 0; i < 9; ++i)
+    for (int q = 0; q < Q; ++q) x[i][q] = F[i](q) * norm2[q];
+  bool any_alone = false;
+  for (int q = 0; q < Q; ++q) {
+    Scalar xq[9];
+    for (int i = 0; i < 9; ++i) xq[i] = x[i][q];
+    det[q] = detail::determinant(xq);
+    gram[q] = detail::GramDeviation<Scalar>(xq).squared_norm();
+    alone[q] = !(det[q] > 5e-3 && gram[q] < 1.0 / 16);  // also true for NaN
+    any_alone = any_alone || alone[q];
+  }
+  if (any_alone)
+    for (int q = 0; q < Q; ++q)
+      if (alone[q])
+        for (int i = 0; i < 9; ++i) x[i][q] = i % 4 == 0 ? 1 : 0;
+  bool converged = false;
+  for (int k = 0; k < 40 && !converged; ++k) {
+    // E = X^T X - I (6 entries), then X <- X - X E / 2.
+    Scalar e00[Q], e11[Q], e22[Q], e01[Q], e02[Q], e12[Q];
+    int unconverged = 0;  // an integer or-reduction vectorises; a max of doubles does not
+    for (int q = 0; q < Q; ++q) {
+      e00[q] = x[0][q] * x[0][q] + x[1][q] * x[1][q] + x[2][q] * x[2][q] - 1;
+      e11[q] = x[3][q] * x[3][q] + x[4][q] * x[4][q] + x[5][q] * x[5][q] - 1;
+      e22[q] = x[6][q] * x[6][q] + x[7][q] * x[7][q] + x[8][q] * x[8][q] - 1;
+      e01[q] = x[0][q] * x[3][q] + x[1][q] * x[4][q] + x[2][q] * x[5][q];
+      e02[q] = x[0][q] * x[6][q] + x[1][q] * x[7][q] + x[2][q] * x[8][q];
+      e12[q] = x[3][q] * x[6][q] + x[4][q] * x[7][q] + x[5][q] * x[8][q];
+      const Scalar n2 = e00[q] * e00[q] + e11[q] * e11[q] + e22[q] * e22[q] +
+                        2 * (e01[q] * e01[q] + e02[q] * e02[q] + e12[q] * e12[q]);
+      unconverged |= !(n2 < 1e-16);  // NaN: not converged
+    }
+    for (int r = 0; r < 3; ++r)
+      for (int q = 0; q < Q; ++q) {
+        const Scalar a = x[r][q], b = x[r + 3][q], c = x[r + 6][q];
+        x[r][q] = a - 0.5 * (a * e00[q] + b * e01[q] + c * e02[q]);
+        x[r + 3][q] = b - 0.5 * (a * e01[q] + b * e11[q] + c * e12[q]);
+        x[r + 6][q] = c - 0.5 * (a * e02[q] + b * e12[q] + c * e22[q]);
+      }
+    converged = !unconverged;  // every point: |E| < 1e-8 before this step, ~1e-16 after
+  }
+  for (int i = 0; i < 9; ++i)
+    for (int q = 0; q < Q; ++q) R[i](q) = x[i][q];
+  if (!any_alone && converged) return;
+  for (int q = 0; q < Q; ++q) {
+    if (!alone[q] && converged) continue;
+    Mat3 Fq;
+    for (int i = 0; i < 9; ++i) Fq.data()[i] = F[i](q);
+    const Mat3 Rq = rotation_of(Fq);
+    for (int i = 0; i < 9; ++i) R[i](q) = Rq.data()[i];
+  }
+}
+
+/// The same for matrices given one per point.
 template <int Q>
 void rotations_of(const std::array<Mat3, Q>& F, std::array<Mat3, Q>& R) {
   if constexpr (Q == 1) {
     R[0] = rotation_of(F[0]);
   } else {
-    using PointArray = Eigen::Array<Scalar, Q, 1>;
-    std::array<PointArray, 9> x;  // x[r + 3c](q) = X_q(r, c)
-    PointArray norm2;
-    for (int q = 0; q < Q; ++q) {
-      norm2(q) = F[q].squaredNorm();
-      for (int i = 0; i < 9; ++i) x[i](q) = F[q].data()[i];
-    }
-    // Scaled to rms singular value 1, then the same entry tests as rotation_of: det X > 5e-3
-    // and |X^T X - I| < 1/4. Other points are replaced by the identity (converged) here.
-    const PointArray scale = (norm2 > 0 && norm2.isFinite()).select((3 / norm2).sqrt(), PointArray::Zero());
-    for (auto& xi : x) xi *= scale;
-    const PointArray det = detail::determinant(x.data());
-    const PointArray gram = detail::GramDeviation<PointArray>(x.data()).squared_norm();
-    const Eigen::Array<bool, Q, 1> alone = !(det > 5e-3 && gram < 1.0 / 16);  // also true for NaN
-    for (int i = 0; i < 9; ++i) x[i] = alone.select(PointArray::Constant(i % 4 == 0 ? 1 : 0), x[i]);
-    bool converged = false;
-    for (int k = 0; k < 40 && !converged; ++k) {
-      const detail::GramDeviation<PointArray> E(x.data());
-      const Scalar e2 = E.squared_norm().maxCoeff();
-      E.newton_schulz_step(x.data());
-      converged = e2 < 1e-16;  // every point: |E| < 1e-8 before this step, ~1e-16 after
-    }
-    for (int q = 0; q < Q; ++q) {
-      if (alone[q] || !converged) R[q] = rotation_of(F[q]);
-      else
-        for (int i = 0; i < 9; ++i) R[q].data()[i] = x[i](q);
-    }
+    PointMat3<Q> f, r;
+    for (int q = 0; q < Q; ++q)
+      for (int i = 0; i < 9; ++i) f[i](q) = F[q].data()[i];
+    rotations_of<Q>(f, r);
+    for (int q = 0; q < Q; ++q)
+      for (int i = 0; i < 9; ++i) R[q].data()[i] = r[i](q);
   }
 }
 

@@ -132,100 +132,58 @@ struct Corotational {
     return evaluate<E>(d, x, f, K, TangentKind::Projected);
   }
 
+  /// The kernel is batched over the quadrature points: every per-point quantity (F, R, the
+  /// strain, the stress, the rotated gradients) is a PointArray with one lane per point, so the
+  /// arithmetic runs as SIMD across points with no per-point 3x3 library calls, and the sums
+  /// over points are the only horizontal reductions.
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
                          TangentKind tangent) {
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
-    const auto& G = d.points.G;
-    const auto& dv = d.points.dv;
-    Eigen::Map<ElementNodes<E>> fm(f.data());
-    fm.setZero();
-    // Rotated gradients h_qa = R_q g_qa, scaled by sqrt(dv_q), one column per point, so that
-    // M = Hs Hs^T = sum_q dv_q vec(h_q) vec(h_q)^T in one matrix product.
-    Eigen::Matrix<Scalar, 3 * N, Q> Hs;
-    // Exact tangent, written as K_ab = sum_q dv_q [2 mu (g_a.g_b) I + lambda h_a h_b^T
-    // + hat(h_a) D'~_q hat(h_b)^T] with D' = c Z^{-1} = D - mu I (the warped tangent's
-    // mu h_b h_a^T - mu (g_a.g_b) I is hat(h_a) (-mu I) hat(h_b)^T) and D'~ = R D' R^T, kept as
-    // its 6 components per point (columns 00 11 22 01 02 12).
-    const bool exact = K && tangent == TangentKind::Exact;
-    Eigen::Matrix<Scalar, Q, 6> Dp;
-    Eigen::Matrix<Scalar, Q, 3 * N> Ht;  // Ht(q, 3a + i) = hs_qa[i]: points along columns
-    Scalar W = 0;
-    std::array<Mat3, Q> Fq, Rq;
-    for (int k = 0; k < Q; ++k) Fq[k].noalias() = x * G[k];
-    rotations_of<Q>(Fq, Rq);  // all points at once: vectorised across points
-    for (int k = 0; k < Q; ++k) {
-      const Mat3& F = Fq[k];
-      const Mat3& R = Rq[k];
-      const Mat3 S = R.transpose() * F;
-      const Mat3 eps = 0.5 * (S + S.transpose()) - Mat3::Identity();
-      const Scalar tr = eps.trace();
-      Mat3 sigma = 2 * d.mu * eps;
-      sigma.diagonal().array() += d.lambda * tr;
-      W += dv[k] * (d.mu * eps.squaredNorm() + 0.5 * d.lambda * tr * tr);
-      fm.noalias() += (dv[k] * R * sigma) * G[k].transpose();
-      if (!K) continue;
-      Eigen::Map<Eigen::Matrix<Scalar, 3, N>> hs(Hs.col(k).data());
-      hs.noalias() = std::sqrt(dv[k]) * R * G[k].transpose();
-      if (!exact) continue;
-      Mat3 Dt = -d.mu * Mat3::Identity();  // R D' R^T; -mu I: the warped tangent's point contribution
-      Mat3 Z = -(eps + Mat3::Identity());
-      Z.diagonal().array() += tr + 3;  // tr(S) I - sym(S)
-      const Scalar detZ = Z.determinant(), z = (tr + 3) * 2 / 3;  // z: Z's mean eigenvalue
-      // Z is SPD iff its leading minors are positive; 1e-8 z^3 keeps Z^{-1} (and with it the
-      // correction) below 1e8 / z, far from the non-differentiable inverted states.
-      if (Z(0, 0) > 0 && Z(0, 0) * Z(1, 1) > Z(0, 1) * Z(0, 1) && detZ > 1e-8 * z * z * z) {
-        const Mat3 D = ((d.lambda * tr - 2 * d.mu) / detZ) * detail::cofactor(Z);  // c Z^{-1} (Z symmetric)
-        Dt.noalias() = R * D * R.transpose();
+    using PA = PointArray<Q>;
+    const auto& GT = d.points.GT;  // GT(q, 3a + j) = g_qa[j]
+    const PA& dv = d.points.dv_points;
+    auto g = [&](int a, int j) { return GT.col(3 * a + j).array(); };
+    // F(i, j) = sum_a x(i, a) g_a[j], at every point.
+    PointMat3<Q> F, R;
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) {
+        PA s = x(i, 0) * g(0, j);
+        for (int a = 1; a < N; ++a) s += x(i, a) * g(a, j);
+        F[i + 3 * j] = s;
       }
-      Ht.row(k) = Hs.col(k).transpose();
-      Dp.row(k) << Dt(0, 0), Dt(1, 1), Dt(2, 2), Dt(0, 1), Dt(0, 2), Dt(1, 2);
-    }
-    if (exact) {
-      // The quadrature points are the SIMD dimension: every quantity is a Q-array, and each
-      // entry of K_ab is one sum over points (Q = 8 on Hex8: two AVX registers per array).
-      using PointArray = Eigen::Array<Scalar, Q, 1>;
-      auto h = [&](int a, int i) { return Ht.col(3 * a + i).array(); };
-      auto dp = [&](int m, int l) {  // D'~(m, l)
-        constexpr int column[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
-        return Dp.col(column[m][l]).array();
-      };
-      // Y_a = hat(h_a) D'~, column l = h_a x D'~(:, l): Y(q, 9a + 3i + l).
-      Eigen::Matrix<Scalar, Q, 9 * N> Y;
-      for (int a = 0; a < N; ++a)
-        for (int l = 0; l < 3; ++l) {
-          Y.col(9 * a + 0 + l) = h(a, 1) * dp(2, l) - h(a, 2) * dp(1, l);
-          Y.col(9 * a + 3 + l) = h(a, 2) * dp(0, l) - h(a, 0) * dp(2, l);
-          Y.col(9 * a + 6 + l) = h(a, 0) * dp(1, l) - h(a, 1) * dp(0, l);
-        }
-      auto y = [&](int a, int i, int l) { return Y.col(9 * a + 3 * i + l).array(); };
-      for (int b = 0; b < N; ++b)
-        for (int a = b; a < N; ++a) {
-          Mat3 Kab;
-          for (int i = 0; i < 3; ++i) {
-            // (Y_a hat(h_b)^T)(i, j) = sum_l Y_a(i, l) hat(h_b)(j, l)
-            const PointArray k0 = d.lambda * h(a, i) * h(b, 0) - y(a, i, 1) * h(b, 2) + y(a, i, 2) * h(b, 1);
-            const PointArray k1 = d.lambda * h(a, i) * h(b, 1) + y(a, i, 0) * h(b, 2) - y(a, i, 2) * h(b, 0);
-            const PointArray k2 = d.lambda * h(a, i) * h(b, 2) - y(a, i, 0) * h(b, 1) + y(a, i, 1) * h(b, 0);
-            Kab(i, 0) = k0.sum(), Kab(i, 1) = k1.sum(), Kab(i, 2) = k2.sum();
-          }
-          Kab.diagonal().array() += 2 * d.mu * d.points.L(a, b);
-          K->template block<3, 3>(3 * a, 3 * b) = Kab;
-          if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
-        }
-    } else if (K) {
-      // Blocks a >= b from small fixed-size products M_ab = Hs_a Hs_b^T (3 x Q times Q x 3),
-      // the others by symmetry: half the work of the full 3N x 3N product, and no general
-      // matrix-product dispatch (which costs more than the arithmetic at these sizes).
-      for (int b = 0; b < N; ++b)
-        for (int a = b; a < N; ++a) {
-          const Mat3 M = Hs.template middleRows<3>(3 * a).lazyProduct(Hs.template middleRows<3>(3 * b).transpose());
-          Mat3 Kab = d.lambda * M + d.mu * M.transpose();
-          Kab.diagonal().array() += d.mu * d.points.L(a, b);
-          K->template block<3, 3>(3 * a, 3 * b) = Kab;
-          if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
-        }
-    }
+    rotations_of<Q>(F, R);
+    auto r = [&](int i, int j) -> const PA& { return R[i + 3 * j]; };
+    // S = R^T F, eps = sym(S) - I (S is symmetric for the polar R, up to round-off).
+    auto S = [&](int i, int j) -> PA { return r(0, i) * F[3 * j] + r(1, i) * F[1 + 3 * j] + r(2, i) * F[2 + 3 * j]; };
+    const PA e00 = S(0, 0) - 1, e11 = S(1, 1) - 1, e22 = S(2, 2) - 1;
+    const PA e01 = 0.5 * (S(0, 1) + S(1, 0)), e02 = 0.5 * (S(0, 2) + S(2, 0)), e12 = 0.5 * (S(1, 2) + S(2, 1));
+    const PA tr = e00 + e11 + e22;
+    const Scalar W =
+        (dv * (d.mu * (e00 * e00 + e11 * e11 + e22 * e22 + 2 * (e01 * e01 + e02 * e02 + e12 * e12)) +
+               0.5 * d.lambda * tr * tr))
+            .sum();
+    // sigma = 2 mu eps + lambda tr(eps) I, and P = dv R sigma (first Piola-Kirchhoff stress
+    // times the point's volume): f_a = sum_q P_q g_qa.
+    const PA sd = d.lambda * tr;
+    const std::array<PA, 9> sigma{2 * d.mu * e00 + sd, 2 * d.mu * e01, 2 * d.mu * e02,
+                                  2 * d.mu * e01,      2 * d.mu * e11 + sd, 2 * d.mu * e12,
+                                  2 * d.mu * e02,      2 * d.mu * e12, 2 * d.mu * e22 + sd};
+    PointMat3<Q> P;
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i)
+        P[i + 3 * j] = dv * (r(i, 0) * sigma[3 * j] + r(i, 1) * sigma[1 + 3 * j] + r(i, 2) * sigma[2 + 3 * j]);
+    for (int a = 0; a < N; ++a)
+      for (int i = 0; i < 3; ++i) f[3 * a + i] = (P[i] * g(a, 0) + P[i + 3] * g(a, 1) + P[i + 6] * g(a, 2)).sum();
+    if (!K) return W;
+
+    // Rotated gradients h_qa = R_q g_qa, scaled by sqrt(dv_q): Ht(q, 3a + i) = hs_qa[i].
+    const PA sq = dv.sqrt();
+    Eigen::Matrix<Scalar, Q, 3 * N> Ht;
+    for (int a = 0; a < N; ++a)
+      for (int i = 0; i < 3; ++i) Ht.col(3 * a + i) = sq * (r(i, 0) * g(a, 0) + r(i, 1) * g(a, 1) + r(i, 2) * g(a, 2));
+    if (tangent == TangentKind::Exact) exact_tangent<E>(d, e00, e11, e22, e01, e02, e12, R, Ht, *K);
+    else warped_tangent<E>(d, Ht, *K);
     return W;
   }
 
@@ -233,6 +191,169 @@ struct Corotational {
   template <FiniteElement E>
   static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
     return corotated_stress(m, x * d.G_centre);
+  }
+
+ private:
+  /// The lower block triangle of C = U diag(w) U^T (blocks of 3 rows / columns: rows
+  /// >= 3 floor(c / 3) of each column c, whole SIMD packets) for U (PaddedRows x Inner,
+  /// column-major, rows beyond Rows zero); C is column-major with leading dimension
+  /// PaddedRows. A register-blocked kernel on Eigen's packets: each column's packets stay in
+  /// SIMD registers over the whole inner sum (written with Eigen expressions or plain loops,
+  /// the accumulators went through the stack at every step). Block columns are unrolled at
+  /// compile time, so each knows its first packet. C(r, c) and C(c, r) are the same sum of the
+  /// same products in the same order, so the result is symmetric bit for bit.
+  template <int Rows, int PaddedRows, int Inner>
+  static void lower_blocks_of_weighted_gram(const Scalar* U, const Scalar* w, Scalar* C) {
+    using Packet = typename Eigen::internal::packet_traits<Scalar>::type;
+    constexpr int P = Eigen::internal::packet_traits<Scalar>::size;
+    static_assert(PaddedRows % P == 0);
+    constexpr int RP = PaddedRows / P;
+    auto block_column = [&]<int B>() {
+      constexpr int p0 = (3 * B) / P, count = RP - p0;
+      for (int c = 3 * B; c < 3 * B + 3; ++c) {
+        Packet acc[count];
+        {
+          const Packet w0 = Eigen::internal::pset1<Packet>(w[0] * U[c]);
+          for (int p = 0; p < count; ++p) acc[p] = Eigen::internal::pmul(Eigen::internal::ploadu<Packet>(U + (p0 + p) * P), w0);
+        }
+        for (int m = 1; m < Inner; ++m) {
+          const Scalar* u = U + PaddedRows * m;
+          const Packet wm = Eigen::internal::pset1<Packet>(w[m] * u[c]);
+          for (int p = 0; p < count; ++p)
+            acc[p] = Eigen::internal::pmadd(Eigen::internal::ploadu<Packet>(u + (p0 + p) * P), wm, acc[p]);
+        }
+        for (int p = 0; p < count; ++p) Eigen::internal::pstoreu(C + PaddedRows * c + (p0 + p) * P, acc[p]);
+      }
+    };
+    [&]<int... B>(std::integer_sequence<int, B...>) {
+      (block_column.template operator()<B>(), ...);
+    }(std::make_integer_sequence<int, Rows / 3>{});
+  }
+
+  /// K_ab = lambda M_ab + mu M_ab^T + mu L_ab I with M = Hs Hs^T = sum_q dv_q h_q h_q^T (the
+  /// warped tangent R K0 R^T). M is formed a column at a time (3N-vectors: SIMD down the
+  /// column), the blocks a >= b from it and mirrored.
+  template <FiniteElement E>
+  static void warped_tangent(const CorotationalData<E>& d, const Eigen::Matrix<Scalar, QuadraturePoints<E>::size, 3 * E::num_nodes>& Ht,
+                             ElementMatrix<E>& K) {
+    constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
+    using Column = Eigen::Matrix<Scalar, 3 * N, 1>;
+    const Eigen::Matrix<Scalar, 3 * N, Q> Hs = Ht.transpose();
+    ElementMatrix<E> M;
+    for (int c = 0; c < 3 * N; ++c) {
+      Column m = Hs.col(0) * Ht(0, c);
+      for (int q = 1; q < Q; ++q) m += Hs.col(q) * Ht(q, c);
+      M.col(c) = m;
+    }
+    for (int b = 0; b < N; ++b)
+      for (int a = b; a < N; ++a) {
+        const Scalar l = d.mu * d.points.L(a, b);
+        for (int j = 0; j < 3; ++j)
+          for (int i = 0; i < 3; ++i) {
+            const Scalar v = d.lambda * M(3 * a + i, 3 * b + j) + d.mu * M(3 * a + j, 3 * b + i) + (i == j ? l : 0.0);
+            K(3 * a + i, 3 * b + j) = v;
+            K(3 * b + j, 3 * a + i) = v;
+          }
+      }
+  }
+
+  /// The exact tangent (see the header comment),
+  ///   K_ab = sum_q [2 mu (g_a.g_b) dv I + lambda hs_a hs_b^T + hat(hs_a) D'~_q hat(hs_b)^T],
+  /// D'~ = R D' R^T with D' = c Z^{-1} (= D - mu I), or -mu I (the warped contribution) where Z
+  /// is near singular. D' is definite, with the sign s of c (Z is SPD), so D'~ = s C C^T with
+  /// C = R chol(|c| Z^{-1}), and hat(hs_a) D'~ hat(hs_b)^T = s (hs_a x C) (hs_b x C)^T: with the
+  /// 3N x 4Q matrix U = [hs_q, hs_q x C_q(:, 0..2)] over the points and weights
+  /// w = (lambda, s_q, s_q, s_q),
+  ///   K = U diag(w) U^T + 2 mu L (x) I,
+  /// one product formed a column at a time (3N-vectors: SIMD down the column), symmetric bit
+  /// for bit (each entry is the same sum of the same products in the same order as its mirror).
+  template <FiniteElement E>
+  static void exact_tangent(const CorotationalData<E>& d, const PointArray<QuadraturePoints<E>::size>& e00,
+                            const PointArray<QuadraturePoints<E>::size>& e11,
+                            const PointArray<QuadraturePoints<E>::size>& e22,
+                            const PointArray<QuadraturePoints<E>::size>& e01,
+                            const PointArray<QuadraturePoints<E>::size>& e02,
+                            const PointArray<QuadraturePoints<E>::size>& e12, const PointMat3<QuadraturePoints<E>::size>& R,
+                            const Eigen::Matrix<Scalar, QuadraturePoints<E>::size, 3 * E::num_nodes>& Ht,
+                            ElementMatrix<E>& K) {
+    constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
+    using PA = PointArray<Q>;
+    // Z = tr(S) I - sym(S) with S = I + eps: Z_ii = tr(eps) + 2 - eps_ii, Z_ij = -eps_ij.
+    const PA tr = e00 + e11 + e22;
+    const PA z00 = tr + 2 - e00, z11 = tr + 2 - e11, z22 = tr + 2 - e22, z01 = -e01, z02 = -e02, z12 = -e12;
+    // cof(Z) (symmetric) and det Z.
+    const PA c00 = z11 * z22 - z12 * z12, c11 = z00 * z22 - z02 * z02, c22 = z00 * z11 - z01 * z01;
+    const PA c01 = z02 * z12 - z01 * z22, c02 = z01 * z12 - z02 * z11, c12 = z01 * z02 - z00 * z12;
+    const PA detZ = z00 * c00 + z01 * c01 + z02 * c02;
+    const PA z = (tr + 3) * (2.0 / 3);  // Z's mean eigenvalue
+    // Z is SPD iff its leading minors are positive; 1e-8 z^3 keeps Z^{-1} (and with it the
+    // correction) below 1e8 / z, far from the non-differentiable inverted states.
+    const Eigen::Array<bool, Q, 1> spd = z00 > 0 && c22 > 0 && detZ > 1e-8 * z * z * z;
+    const PA c = d.lambda * tr - 2 * d.mu;
+    // |c| Z^{-1} = k cof(Z), k = |c| / det Z; its Cholesky factor L (lower), then C = R L.
+    // Where Z is not SPD: D'~ = -mu I, i.e. s = -1 and C = sqrt(mu) I (L = sqrt(mu) R^T).
+    const PA k = spd.select(c.abs() / detZ, PA::Zero());
+    const PA l00 = (k * c00).sqrt();
+    const PA i00 = (l00 > 0).select(1 / l00, PA::Zero());
+    const PA l10 = k * c01 * i00, l20 = k * c02 * i00;
+    const PA l11 = (k * c11 - l10 * l10).max(0).sqrt();
+    const PA i11 = (l11 > 0).select(1 / l11, PA::Zero());
+    const PA l21 = (k * c12 - l20 * l10) * i11;
+    const PA l22 = (k * c22 - l20 * l20 - l21 * l21).max(0).sqrt();
+    const PA s = spd.select((c < 0).select(PA::Constant(-1.0), PA::Constant(1.0)), PA::Constant(-1.0));
+    const Scalar root_mu = std::sqrt(d.mu);
+    auto r = [&](int i, int j) -> const PA& { return R[i + 3 * j]; };
+    // C(i, l) = sum_m R(i, m) L(m, l), L lower triangular; sqrt(mu) I where Z is not SPD.
+    std::array<PA, 9> C;
+    C[0] = spd.select(r(0, 0) * l00 + r(0, 1) * l10 + r(0, 2) * l20, PA::Constant(root_mu));
+    C[1] = spd.select(r(1, 0) * l00 + r(1, 1) * l10 + r(1, 2) * l20, PA::Zero());
+    C[2] = spd.select(r(2, 0) * l00 + r(2, 1) * l10 + r(2, 2) * l20, PA::Zero());
+    C[3] = spd.select(r(0, 1) * l11 + r(0, 2) * l21, PA::Zero());
+    C[4] = spd.select(r(1, 1) * l11 + r(1, 2) * l21, PA::Constant(root_mu));
+    C[5] = spd.select(r(2, 1) * l11 + r(2, 2) * l21, PA::Zero());
+    C[6] = spd.select(r(0, 2) * l22, PA::Zero());
+    C[7] = spd.select(r(1, 2) * l22, PA::Zero());
+    C[8] = spd.select(r(2, 2) * l22, PA::Constant(root_mu));
+    // U (3N x 4Q, rows padded to whole SIMD packets with zeros): columns q = hs_q, columns
+    // Q (1 + l) + q = hs_q x C_q(:, l); weights w = (lambda, s, s, s).
+    constexpr int M3 = 3 * N, K4 = 4 * Q;
+    constexpr int P = Eigen::internal::packet_traits<Scalar>::size, Padded = (M3 + P - 1) / P * P;
+    Eigen::Matrix<Scalar, Padded, K4> U;
+    if constexpr (Padded > M3) U.template bottomRows<Padded - M3>().setZero();
+    U.template topLeftCorner<M3, Q>() = Ht.transpose();
+    Eigen::Matrix<Scalar, K4, 1> w;
+    w.template head<Q>().setConstant(d.lambda);
+    for (int l = 0; l < 3; ++l) w.template segment<Q>(Q * (1 + l)) = s.matrix();
+    auto h = [&](int a, int i) { return Ht.col(3 * a + i).array(); };
+    for (int a = 0; a < N; ++a)
+      for (int l = 0; l < 3; ++l) {
+        const PA &cx = C[3 * l], &cy = C[3 * l + 1], &cz = C[3 * l + 2];
+        const PA wx = h(a, 1) * cz - h(a, 2) * cy, wy = h(a, 2) * cx - h(a, 0) * cz, wz = h(a, 0) * cy - h(a, 1) * cx;
+        for (int q = 0; q < Q; ++q) {
+          Scalar* u = &U(3 * a, Q * (1 + l) + q);
+          u[0] = wx[q], u[1] = wy[q], u[2] = wz[q];
+        }
+      }
+    // The lower blocks of U diag(w) U^T, straight into K where its columns are whole packets.
+    if constexpr (Padded == M3) {
+      lower_blocks_of_weighted_gram<M3, Padded, K4>(U.data(), w.data(), K.data());
+    } else {
+      Eigen::Matrix<Scalar, Padded, M3> Kp;
+      lower_blocks_of_weighted_gram<M3, Padded, K4>(U.data(), w.data(), Kp.data());
+      for (int b = 0; b < N; ++b)
+        for (int a = b; a < N; ++a)
+          for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i) K(3 * a + i, 3 * b + j) = Kp(3 * a + i, 3 * b + j);
+    }
+    // + 2 mu L_ab I on the lower blocks, then the upper blocks as their mirror.
+    for (int b = 0; b < N; ++b)
+      for (int a = b; a < N; ++a) {
+        const Scalar l2 = 2 * d.mu * d.points.L(a, b);
+        for (int i = 0; i < 3; ++i) K(3 * a + i, 3 * b + i) += l2;
+        if (a != b)
+          for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i) K(3 * b + j, 3 * a + i) = K(3 * a + i, 3 * b + j);
+      }
   }
 };
 

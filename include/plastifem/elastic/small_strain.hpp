@@ -101,6 +101,10 @@ struct QuadraturePoints {
   static constexpr int size = decltype(E::template quadrature<E::stiffness_degree>())::size;
   std::array<ShapeGradients<E>, size> G;  ///< dN/dX at each point
   std::array<Scalar, size> dv;            ///< w_q det J_q
+  /// The same gradients point-major, for kernels batched over the points (SIMD lanes):
+  /// GT(q, 3a + j) = dN_a/dX_j at point q; and dv as an array over the points.
+  Eigen::Matrix<Scalar, size, 3 * E::num_nodes> GT;
+  Eigen::Array<Scalar, size, 1> dv_points;
   /// L_ab = sum_q dv_q g_qa . g_qb: the rotation-free part of the corotational and Neo-Hookean
   /// tangents, a rest-shape quantity.
   Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;
@@ -113,6 +117,9 @@ QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
   for (int k = 0; k < q.size; ++k) {
     p.dv[k] = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
     p.G[k] = physical_gradient<E>(X0, q.points[k]);
+    p.dv_points(k) = p.dv[k];
+    for (int a = 0; a < E::num_nodes; ++a)
+      for (int j = 0; j < 3; ++j) p.GT(k, 3 * a + j) = p.G[k](a, j);
   }
   p.L.setZero();
   for (int k = 0; k < q.size; ++k) p.L.noalias() += p.dv[k] * p.G[k] * p.G[k].transpose();
