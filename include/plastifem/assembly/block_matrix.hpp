@@ -88,12 +88,16 @@ class BlockSymmetricMatrix {
 
   Vector diagonal() const {
     Vector d(rows());
+    diagonal_into(d);
+    return d;
+  }
+  /// The diagonal written into d, already sized rows(): no allocation (the CG preconditioner).
+  void diagonal_into(Vector& d) const {
     const auto& p = *pattern_;
     for (Index I = 0; I < p.num_block_rows; ++I) {
       const Scalar* B = &values_[9 * static_cast<size_t>(p.row_start[I + 1] - 1)];  // diagonal block: last
       d.segment<3>(3 * I) << B[0], B[4], B[8];
     }
-    return d;
   }
 
   /// Sum of all entries of the full symmetric matrix.

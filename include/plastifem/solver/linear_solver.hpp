@@ -170,7 +170,7 @@ class LinearSolver {
     if (r_.size() != n) {
       r_.resize(n), z_.resize(n), p_.resize(n), q_.resize(n), inv_diag_.resize(n);
     }
-    inv_diag_ = A.diagonal();
+    A.diagonal_into(inv_diag_);
     for (Index i = 0; i < n; ++i) {
       if (!(inv_diag_[i] > 0))
         fail<SolverError>("CG needs a positive diagonal; entry {} is {} (singular or indefinite system)", i,
