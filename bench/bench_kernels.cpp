@@ -13,6 +13,8 @@
 //                 corotational-element,neohookean,stable-neohookean] [--csv FILE]
 #include <plastifem/plastifem.hpp>
 
+#include "bench_common.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -23,19 +25,13 @@
 #include <string>
 
 using namespace plastifem;
+using plastifem::bench::split;
 
 namespace {
 
 volatile Scalar sink;  // keeps results alive
 std::vector<std::string> models{"linear", "corotational", "corotational-element", "neohookean", "stable-neohookean"};
 bool want(const char* m) { return std::find(models.begin(), models.end(), m) != models.end(); }
-
-std::vector<std::string> split(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
-  return out;
-}
 
 template <class E>
 Mesh<E> one_cell() {

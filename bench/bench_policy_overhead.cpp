@@ -19,6 +19,8 @@
 
 #include <plastifem/plastifem.hpp>
 
+#include "bench_common.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -32,16 +34,10 @@
 #endif
 
 using namespace plastifem;
+using plastifem::bench::split;
 using plastifem::bench::BareNewmark;
 
 namespace {
-
-std::vector<std::string> split(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
-  return out;
-}
 
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());

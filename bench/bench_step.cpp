@@ -5,8 +5,10 @@
 // Each row runs 100 steps (t = 0 -> 1 s): the median, min and max wall time are over steps
 // 6..100 (5 warm-up steps, 95 measured), and the tip displacement at t = 1 s is printed so that
 // a fast wrong answer shows; real-time rows also give their tip's relative difference from the
-// accurate row of the same model. `mem MB` is the heap the row's solver holds after its steps
-// (element data, matrices, vectors, solver scratch; glibc's malloc statistics). Output: a table on stdout, a CSV, and
+// accurate row of the same model. `peak MB` is the peak heap of the row's solver (element data,
+// matrices, vectors, solver scratch; glibc's malloc statistics, read after construction and
+// after every step: a step allocates nothing once warmed up, tests/test_allocation.cpp).
+// Output: a table on stdout, a CSV, and
 // with several scenes a scaling table: ms per step against element count, with the exponent p
 // of a least-squares fit ms ~ elements^p.
 //
@@ -17,6 +19,8 @@
 //              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
 //              [--cg-cap N] (real-time rows also with CG capped at N iterations; default 5, 0: none)
 #include <plastifem/plastifem.hpp>
+
+#include "bench_common.hpp"
 
 #include <fmt/core.h>
 #include <fmt/os.h>
@@ -38,6 +42,7 @@
 #endif
 
 using namespace plastifem;
+using plastifem::bench::split;
 
 namespace {
 
@@ -45,7 +50,7 @@ struct Row {
   std::string scene, element, model, solver, mode;
   int threads;
   Index dofs, elements;
-  double rss_mb;
+  double heap_mb;  ///< peak heap of the row's solver: the largest of its heap after construction and after each step
   double median_ms, min_ms, max_ms, newton, linear;
   Scalar tip_uz;
 };
@@ -58,13 +63,6 @@ double heap_mb() {
 #else
   return 0;
 #endif
-}
-
-std::vector<std::string> split(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
-  return out;
 }
 
 /// cg_cap > 0: real-time mode with CG stopped after cg_cap iterations (or at 1e-6, if sooner).
@@ -89,8 +87,10 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
     if (mesh.node(i).y() == ny && mesh.node(i).z() == nz) tip = i;
   std::vector<double> ms;
   double newton = 0, lin = 0;
+  double peak = heap_mb();
   for (int k = 1; k <= 100; ++k) {
     const StepReport r = s.step(0.01);
+    peak = std::max(peak, heap_mb());  // outside the timed step
     if (k > 5) {
       ms.push_back(r.wall_ms);
       newton += r.newton_iterations;
@@ -102,7 +102,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   const std::string model = exact_tangent ? Model::name : fmt::format("{} (warped)", Model::name);
   return {scene, E::name, model,
           kind == LinearSolverKind::Direct ? "LDLT" : cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
-          threads, s.num_dofs(), mesh.num_elements(), heap_mb() - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
+          threads, s.num_dofs(), mesh.num_elements(), peak - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
 }
 
 }  // namespace
@@ -130,10 +130,10 @@ int main(int argc, char** argv) try {
     } else fail<InvalidArgument>("unknown option '{}'", a);
   }
   std::ofstream out(csv);
-  out << "scene,element,model,solver,mode,threads,dofs,elements,memory_mb,median_ms,min_ms,max_ms,newton_per_step,"
+  out << "scene,element,model,solver,mode,threads,dofs,elements,peak_heap_mb,median_ms,min_ms,max_ms,newton_per_step,"
          "linear_per_step,tip_uz_t1,realtime_vs_accurate\n";
   fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7} {:>10} {:>9} {:>9} {:>7} {:>8} {:>10} {:>9}\n", "scene", "elem",
-             "model", "solver", "mode", "thr", "dofs", "mem MB", "median ms", "min ms", "max ms", "Newton", "lin.it",
+             "model", "solver", "mode", "thr", "dofs", "peak MB", "median ms", "min ms", "max ms", "Newton", "lin.it",
              "tip uz(1s)", "rt error");
   std::map<std::string, Scalar> accurate_tip;  // scene/element/model/threads -> tip of the accurate CG row
   std::vector<Row> rows;
@@ -144,10 +144,10 @@ int main(int argc, char** argv) try {
     if (r.mode == "realtime" && accurate_tip.count(key))
       rt_error = fmt::format("{:.2e}", std::abs(r.tip_uz - accurate_tip[key]) / std::abs(accurate_tip[key]));
     fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7.1f} {:>10.3f} {:>9.3f} {:>9.3f} {:>7.2f} {:>8.1f} {:>10.5f} {:>9}\n",
-               r.scene, r.element, r.model, r.solver, r.mode, r.threads, r.dofs, r.rss_mb, r.median_ms, r.min_ms,
+               r.scene, r.element, r.model, r.solver, r.mode, r.threads, r.dofs, r.heap_mb, r.median_ms, r.min_ms,
                r.max_ms, r.newton, r.linear, r.tip_uz, rt_error);
     out << fmt::format("{},{},{},{},{},{},{},{},{:.1f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{:.9g},{}\n", r.scene, r.element,
-                       r.model, r.solver, r.mode, r.threads, r.dofs, r.elements, r.rss_mb, r.median_ms, r.min_ms,
+                       r.model, r.solver, r.mode, r.threads, r.dofs, r.elements, r.heap_mb, r.median_ms, r.min_ms,
                        r.max_ms, r.newton, r.linear, r.tip_uz, rt_error);
     out.flush();
     std::fflush(stdout);  // progress is visible when the table is redirected to a file

@@ -21,6 +21,8 @@
 //   --quick: levels 1 and 0.5 only, every reference at h >= 0.5.
 #include <plastifem/plastifem.hpp>
 
+#include "bench_common.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -40,6 +42,7 @@
 #endif
 
 using namespace plastifem;
+using plastifem::bench::split;
 
 namespace {
 
@@ -55,23 +58,25 @@ constexpr int kSteps = 200, kWarmup = 5;
 /// How a case is solved. Dynamics: CG to `tolerance` with the Newton residual tolerance set to
 /// the same value (accurate mode), or one linearised solve per step (real-time mode).
 /// Statics: Newton to `tolerance` with the direct solver (CHOLMOD where built in, else Eigen's
-/// simplicial LDLT) up to direct_max_dofs(), above it Jacobi CG to `cg_tolerance`.
+/// simplicial LDLT) up to `direct_max_dofs`, above it Jacobi CG to `cg_tolerance`.
 struct Variant {
   LinearSolverKind kind = LinearSolverKind::Direct;
   NewmarkMode mode = NewmarkMode::Accurate;
   Scalar tolerance = 1e-6;
   Scalar cg_tolerance = 1e-9;  ///< statics with CG only
   int max_cg = 1000;
+  /// Statics: the direct solver up to this size, CG above. On this bar Jacobi CG to 1e-9 beats
+  /// a factorisation from 20,000 dofs up (Hex8 at h = 0.25, one core: 0.19 s against 0.57 s
+  /// with CHOLMOD for Linear); the references (Newton 1e-8) are faster direct where CHOLMOD is
+  /// built in (Tet10 at h = 0.5: 3.4 s against 6.9 s), while Eigen's simplicial LDLT takes
+  /// 10+ s per factorisation there.
+  Index direct_max_dofs = 10000;
 
   std::string mode_name(bool dynamic) const {
     return !dynamic ? "static" : mode == NewmarkMode::Accurate ? "accurate" : "realtime";
   }
 };
 
-/// Statics: the direct solver up to this size, CG above. Eigen's simplicial LDLT takes 10+ s
-/// per factorisation above 10,000 dofs here; CHOLMOD's supernodal one 0.5 s at 20,000 and is
-/// kept below the 152k-dof linear reference (minutes, gigabytes of fill).
-constexpr Index direct_max_dofs() { return cholmod_available() ? 60000 : 10000; }
 constexpr Index kCostlyDofs = 10000;     ///< meshes above this size run the scene's reduced model/variant lists
 
 struct Case {
@@ -187,7 +192,7 @@ Result run_bar(const Case& c, const BarLoad& load) {
     // (Hex8 Corotational at h = 1, 1 g in one load step: 10 Newton iterations with it, 4
     // without); full Newton steps with the solver's automatic load cutting are faster here.
     st.newton.line_search = false;
-    if (c.variant.kind == LinearSolverKind::Direct && dofs <= direct_max_dofs()) {
+    if (c.variant.kind == LinearSolverKind::Direct && dofs <= c.variant.direct_max_dofs) {
       st.static_linear = {LinearSolverKind::Direct};
       res.solver = direct_solver_name(DirectSolver::Auto);
     } else {
@@ -283,7 +288,9 @@ std::vector<Scene> scene_table(int load_steps_override) {
   const std::vector<Variant> direct{{LDLT, accurate, 1e-6, 1e-9}};
   // References: Newton to 1e-8 (CG 1e-10 where CG is used): their own solver error stays three
   // orders below the smallest differences they measure.
-  const Variant ref_static{LDLT, accurate, 1e-8, 1e-10, 50000};
+  // Direct up to 60k dofs with CHOLMOD: below the 152k-dof linear reference (minutes and
+  // gigabytes of fill), above the 20,787-dof Tet10 h = 0.5 ones.
+  const Variant ref_static{LDLT, accurate, 1e-8, 1e-10, 50000, cholmod_available() ? Index{60000} : Index{10000}};
   std::vector<Scene> t;
   t.push_back({"linear", "discretisation only: Linear statics under gravity, tip u_z (reference on the finest mesh)",
                false, {"Linear", "LinearMeanDilatation"}, {"Linear", "LinearMeanDilatation"}, {}, direct, direct,
@@ -313,13 +320,6 @@ std::vector<Scene> scene_table(int load_steps_override) {
 }
 
 // --- command line and output ---------------------------------------------------------------
-
-std::vector<std::string> split(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
-  return out;
-}
 
 std::string lower(std::string s) {
   for (char& ch : s) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));

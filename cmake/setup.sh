@@ -49,7 +49,8 @@ case "$what" in
   study)
     cmake --build "$build" -j "$jobs" --target study_accuracy
     mkdir -p "$build/bench"
-    "$build/bench/study_accuracy" --csv "$build/bench/study_accuracy.csv" "${@:2}"
+    # One core throughout: the study's costs are single-threaded, CHOLMOD's BLAS included.
+    OPENBLAS_NUM_THREADS=1 "$build/bench/study_accuracy" --csv "$build/bench/study_accuracy.csv" "${@:2}"
     if ! /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
       echo "setup: installing python3-matplotlib"
       sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
