@@ -20,6 +20,9 @@
 #ifdef PLASTIFEM_HAS_CHOLMOD
 #include <Eigen/CholmodSupport>
 #endif
+#if defined(PLASTIFEM_HAS_CHOLMOD) && defined(_OPENMP)
+#include <omp.h>
+#endif
 
 namespace plastifem {
 
@@ -74,6 +77,25 @@ class CholmodLLT : public Eigen::CholmodSupernodalLLT<SparseMatrix, Eigen::Lower
   /// min diag(L) / max diag(L) of the last factorisation.
   double rcond() { return cholmod_rcond(this->m_cholmodFactor, &this->cholmod()); }
 };
+
+/// CHOLMOD 3 (SuiteSparse 5, Debian 12) opens an OpenMP region of a compile-time 4 threads
+/// (CHOLMOD_OMP_NUM_THREADS; OMP_NUM_THREADS does not bound it) around the scatter loops of every
+/// supernode wider than 32-64 columns. On 2 cores waking those threads costs more than the
+/// factorisation: a bar90 Hex8 Neo-Hookean static solve took 62-73 ms with them, 20-24 ms
+/// without (SimplicialLDLT: 24-28 ms). The dense work runs in the BLAS, which has its own
+/// threads (OPENBLAS_NUM_THREADS), so CHOLMOD's regions are made inactive (one thread) for the
+/// duration of a call: max-active-levels 0, restored on exit. Needs the caller built with OpenMP
+/// (as the toolkit's threads do); without it, run with OMP_THREAD_LIMIT=1 for the same effect.
+class SerialOpenMPScope {
+ public:
+#ifdef _OPENMP
+  SerialOpenMPScope() : saved_(omp_get_max_active_levels()) { omp_set_max_active_levels(0); }
+  ~SerialOpenMPScope() { omp_set_max_active_levels(saved_); }
+
+ private:
+  int saved_;
+#endif
+};
 }  // namespace detail
 #endif
 
@@ -122,6 +144,7 @@ class LinearSolver {
     }
 #ifdef PLASTIFEM_HAS_CHOLMOD
     if (cholmod) {
+      const detail::SerialOpenMPScope serial;
       x = cholmod_->solve(b);
       return r;
     }
@@ -152,6 +175,7 @@ class LinearSolver {
   void factorise_cholmod() {
 #ifdef PLASTIFEM_HAS_CHOLMOD
     if (!cholmod_) cholmod_ = std::make_unique<detail::CholmodLLT>();
+    const detail::SerialOpenMPScope serial;
     if (!analysed_) {
       cholmod_->analyzePattern(csc_);
       analysed_ = true;
