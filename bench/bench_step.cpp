@@ -101,7 +101,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   const double n = static_cast<double>(ms.size());
   const std::string model = exact_tangent ? Model::name : fmt::format("{} (warped)", Model::name);
   return {scene, E::name, model,
-          kind == LinearSolverKind::Direct ? "LDLT" : cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
+          kind == LinearSolverKind::Direct ? std::string(direct_solver_name(DirectSolver::Auto)) : cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
           threads, s.num_dofs(), mesh.num_elements(), peak - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
 }
 
@@ -139,7 +139,7 @@ int main(int argc, char** argv) try {
   std::vector<Row> rows;
   auto emit = [&](const Row& r) {
     const std::string key = fmt::format("{}/{}/{}/{}", r.scene, r.element, r.model, r.threads);
-    if (r.mode == "accurate" && r.solver != "LDLT") accurate_tip[key] = r.tip_uz;
+    if (r.mode == "accurate" && r.solver != direct_solver_name(DirectSolver::Auto)) accurate_tip[key] = r.tip_uz;
     std::string rt_error;
     if (r.mode == "realtime" && accurate_tip.count(key))
       rt_error = fmt::format("{:.2e}", std::abs(r.tip_uz - accurate_tip[key]) / std::abs(accurate_tip[key]));
