@@ -7,7 +7,7 @@
 #                                 step (default), per static solve, or the NoPlasticity /
 #                                 NoEnrichment overhead ratio
 #   bash cmake/setup.sh study     the accuracy-vs-cost study (docs/study.md): CSV into build/bench/,
-#                                 plot into docs/speed_accuracy.png (~13 min, single-threaded)
+#                                 plot into docs/speed_accuracy.png (~7 min, single-threaded)
 # Environment: BUILD_DIR (default build), JOBS (default: number of cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
