@@ -81,9 +81,7 @@ class BlockSymmetricMatrix {
       std::copy(o.values_.begin(), o.values_.end(), values_.begin());
       return *this;
     }
-    pattern_ = o.pattern_, values_ = o.values_, split_ = o.split_, buffers_ = o.buffers_;
-    csc_outer_ = o.csc_outer_, csc_inner_ = o.csc_inner_, csc_from_ = o.csc_from_;
-    return *this;
+    return *this = BlockSymmetricMatrix(o);  // another pattern: a whole copy
   }
 
   Index rows() const { return pattern_ ? 3 * pattern_->num_block_rows : 0; }

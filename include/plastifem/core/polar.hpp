@@ -35,8 +35,8 @@ inline Mat3 cofactor(const Mat3& X) {
   return C;
 }
 
-/// det X for X given as 9 column-major components x[r + 3c] of type T: a Scalar, or an
-/// Eigen array over quadrature points (rotations_of).
+/// det X for X given as 9 column-major components x[r + 3c] (one point's X; rotations_of
+/// gathers each lane into such an array for its entry tests).
 template <class T>
 T determinant(const T* x) {
   return x[0] * (x[4] * x[8] - x[7] * x[5]) - x[3] * (x[1] * x[8] - x[7] * x[2]) + x[6] * (x[1] * x[5] - x[4] * x[2]);
