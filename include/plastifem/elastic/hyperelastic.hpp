@@ -23,10 +23,9 @@
 // return an infinite energy and NaN forces: the solver's line search then rejects the step
 // that would invert an element, and a state that is already inverted gives a clear error.
 #include <plastifem/core/polar.hpp>
+#include <plastifem/core/symmetric_eigen.hpp>
 #include <plastifem/elastic/small_strain.hpp>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <limits>
 
 namespace plastifem {
@@ -46,14 +45,6 @@ inline void add_cofactor_derivative(Matrix9& A, const Mat3& F, Scalar scale) {
           const int m = 3 - i - k, n = 3 - j - l;
           A(i + 3 * j, k + 3 * l) += scale * eps(i, k, m) * eps(j, l, n) * F(m, n);
         }
-}
-
-/// Clamps the negative eigenvalues of a symmetric 9x9 matrix to zero; cheap when already SPD.
-inline void project_psd(Matrix9& A) {
-  if (Eigen::LLT<Matrix9>(A).info() == Eigen::Success) return;
-  Eigen::SelfAdjointEigenSolver<Matrix9> es(A);
-  const auto d = es.eigenvalues().cwiseMax(0.0);
-  A = es.eigenvectors() * d.asDiagonal() * es.eigenvectors().transpose();
 }
 
 }  // namespace detail
@@ -256,7 +247,7 @@ struct Hyperelastic {
       fm.noalias() += (dv * P) * G.transpose();
       if (K) {
         detail::add_cofactor_derivative(A, F[q], dU);
-        if (tangent == TangentKind::Projected) detail::project_psd(A);
+        if (tangent == TangentKind::Projected) project_psd<9>(A);
         for (int b = 0; b < N; ++b)
           for (int k = 0; k < 3; ++k)
             T.col(3 * b + k) = A.col(k) * G(b, 0) + A.col(k + 3) * G(b, 1) + A.col(k + 6) * G(b, 2);
