@@ -40,7 +40,7 @@
 // inverted or collapsed point, where the polar factor is not differentiable) the point keeps
 // its warped contribution.
 #include <plastifem/core/polar.hpp>
-#include <plastifem/elastic/small_strain.hpp>
+#include <plastifem/elastic/small_strain_law.hpp>
 
 namespace plastifem {
 
@@ -71,6 +71,14 @@ struct CorotationalPerElementT {
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
                          ElementMatrix<E>* K) {
+    return evaluate<E>(d, x, f, K, TangentKind::Projected, false);
+  }
+
+  /// `lower`: only K's lower blocks (a >= b) are needed (the solver's assembly reads no
+  /// others): half the rotation of K0.
+  template <FiniteElement E>
+  static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
+                         TangentKind, bool lower) {
     constexpr int N = E::num_nodes;
     const Mat3 R = rotation_of(x * d.G_centre);
     // Displacement in the rotated frame, relative to node 0 (K0 annihilates translations).
@@ -83,9 +91,27 @@ struct CorotationalPerElementT {
       // panels (vectorise far better than N^2 products of 3 x 3 blocks; same 6.9k flop on Hex8).
       Eigen::Matrix<Scalar, 3 * N, 3 * N> T;
       for (int b = 0; b < N; ++b) T.template middleCols<3>(3 * b).noalias() = d.K0.template middleCols<3>(3 * b) * R.transpose();
-      for (int a = 0; a < N; ++a) K->template middleRows<3>(3 * a).noalias() = R * T.template middleRows<3>(3 * a);
+      if (lower) {
+        for (int a = 0; a < N; ++a)
+          for (int b = 0; b <= a; ++b)
+            K->template block<3, 3>(3 * a, 3 * b).noalias() = R.lazyProduct(T.template block<3, 3>(3 * a, 3 * b));
+      } else {
+        for (int a = 0; a < N; ++a) K->template middleRows<3>(3 * a).noalias() = R * T.template middleRows<3>(3 * a);
+      }
     }
     return 0.5 * as_vector<E>(y).dot(f0);
+  }
+
+  /// The point law in the element's rotated frame (elastic/small_strain_law.hpp) and the
+  /// element integral over any point set, with R the polar rotation of the set's mean
+  /// deformation gradient (for a cut element, one rotation per side: seed 001 eq. 64-71); over
+  /// the Gauss rule it equals evaluate() on parallelepipeds, tetrahedra and straight Tet10s.
+  using Law = SmallStrainLaw;
+  template <FiniteElement E>
+  static Scalar evaluate_points(const Law& law, const PointSet<E>& ps, const ElementNodes<E>& x, ElementVector<E>& f,
+                                ElementMatrix<E>* K, TangentKind = TangentKind::Projected) {
+    const Mat3 R = rotation_of(relative_to_first_node<E>(x) * ps.mean_gradient());
+    return detail::small_strain_points<E>(law, V == Volumetric::MeanDilatation, ps, x, R, f, K);
   }
 
   /// Cauchy stress at the element centre: R C(sym(R^T F) - I) R^T.
@@ -124,7 +150,72 @@ struct Corotational {
 
   /// Projected: the warped tangent R K0 R^T (positive semi-definite; the default and the
   /// fallback); Exact: the true Jacobian of the force, including the derivative of R.
-  enum class TangentKind { Projected, Exact };
+  using TangentKind = plastifem::TangentKind;
+  static constexpr bool has_exact_tangent = true;
+
+  /// The point law: R = polar(F), S = R^T F, eps = sym(S) - I,
+  /// psi = mu eps:eps + lambda/2 tr(eps)^2, P = R sigma(eps); A exact (see the file comment:
+  /// dP = 2 mu dF + lambda tr(R^T dF) R + c dR, dR = R hat(omega), omega = Z^{-1} axial(R^T dF -
+  /// dF^T R), Z = tr(S) I - S, c = lambda tr(eps) - 2 mu) or warped (R held fixed), the warped
+  /// one also where Z is near singular.
+  struct Law {
+    Scalar mu = 0, lambda = 0;
+    Law() = default;
+    explicit Law(const Material& m) : mu(m.mu()), lambda(m.lambda()) {}
+    /// F = R S, R the closest proper rotation (core/polar.hpp), S = R^T F.
+    static void rotation_stretch(const Mat3& F, Mat3& R, Mat3& S) {
+      R = rotation_of(F);
+      S = R.transpose() * F;
+    }
+    Scalar evaluate(const Mat3& F, Mat3& P, Matrix9* A, TangentKind kind = TangentKind::Projected) const {
+      Mat3 R, S;
+      rotation_stretch(F, R, S);
+      const Mat3 Ss = 0.5 * (S + S.transpose());
+      const Mat3 eps = Ss - Mat3::Identity();
+      const Scalar tr = eps.trace();
+      P = R * (2 * mu * eps + lambda * tr * Mat3::Identity());
+      if (A) {
+        const Mat3 Z = Ss.trace() * Mat3::Identity() - Ss;
+        const Scalar z = Z.trace() / 3;
+        const bool spd = Z(0, 0) > 0 && Z.topLeftCorner<2, 2>().determinant() > 0 && Z.determinant() > 1e-8 * z * z * z;
+        if (kind == TangentKind::Exact && spd) {
+          const Mat3 Zinv = Z.inverse();
+          const Scalar c = lambda * tr - 2 * mu;
+          for (int l = 0; l < 3; ++l)
+            for (int k = 0; k < 3; ++k) {
+              Mat3 dF = Mat3::Zero();
+              dF(k, l) = 1;
+              const Mat3 W = R.transpose() * dF - dF.transpose() * R;  // = hat(Z omega)
+              const Vec3 omega = Zinv * Vec3(W(2, 1), W(0, 2), W(1, 0));
+              Mat3 hat;
+              hat << 0, -omega.z(), omega.y(), omega.z(), 0, -omega.x(), -omega.y(), omega.x(), 0;
+              const Mat3 dP = 2 * mu * dF + lambda * (R.transpose() * dF).trace() * R + c * (R * hat);
+              A->col(k + 3 * l) = Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>>(dP.data());
+            }
+        } else {
+          *A = detail::rotated_hooke_tangent(R, mu, lambda);
+        }
+      }
+      return mu * eps.squaredNorm() + 0.5 * lambda * tr * tr;
+    }
+  };
+
+  /// The element integral over any point set (one rotation per point), equal to evaluate()
+  /// over the Gauss rule.
+  template <FiniteElement E>
+  static Scalar evaluate_points(const Law& law, const PointSet<E>& ps, const ElementNodes<E>& x, ElementVector<E>& f,
+                                ElementMatrix<E>* K, TangentKind kind = TangentKind::Projected) {
+    f.setZero();
+    if (K) K->setZero();
+    Scalar W = 0;
+    Mat3 P;
+    Matrix9 A;
+    for (int q = 0; q < ps.size(); ++q) {
+      W += ps.dv[q] * law.evaluate(x * ps.G[q], P, K ? &A : nullptr, kind);
+      detail::add_point_contribution<E>(ps.G[q], ps.dv[q], P, K ? &A : nullptr, f, K);
+    }
+    return W;
+  }
 
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
@@ -136,9 +227,11 @@ struct Corotational {
   /// strain, the stress, the rotated gradients) is a PointArray with one lane per point, so the
   /// arithmetic runs as SIMD across points with no per-point 3x3 library calls, and the sums
   /// over points are the only horizontal reductions.
+  /// `lower`: only K's lower blocks (a >= b) are needed (the solver's assembly reads no
+  /// others): the upper ones are left unset.
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
-                         TangentKind tangent) {
+                         TangentKind tangent, bool lower = false) {
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     using PA = PointArray<Q>;
     const auto& GT = d.points.GT;  // GT(q, 3a + j) = g_qa[j]
@@ -182,8 +275,8 @@ struct Corotational {
     Eigen::Matrix<Scalar, Q, 3 * N> Ht;
     for (int a = 0; a < N; ++a)
       for (int i = 0; i < 3; ++i) Ht.col(3 * a + i) = sq * (r(i, 0) * g(a, 0) + r(i, 1) * g(a, 1) + r(i, 2) * g(a, 2));
-    if (tangent == TangentKind::Exact) exact_tangent<E>(d, e00, e11, e22, e01, e02, e12, R, Ht, *K);
-    else warped_tangent<E>(d, Ht, *K);
+    if (tangent == TangentKind::Exact) exact_tangent<E>(d, e00, e11, e22, e01, e02, e12, R, Ht, *K, lower);
+    else warped_tangent<E>(d, Ht, *K, lower);
     return W;
   }
 
@@ -235,7 +328,7 @@ struct Corotational {
   /// column), the blocks a >= b from it and mirrored.
   template <FiniteElement E>
   static void warped_tangent(const CorotationalData<E>& d, const Eigen::Matrix<Scalar, QuadraturePoints<E>::size, 3 * E::num_nodes>& Ht,
-                             ElementMatrix<E>& K) {
+                             ElementMatrix<E>& K, bool lower) {
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     using Column = Eigen::Matrix<Scalar, 3 * N, 1>;
     const Eigen::Matrix<Scalar, 3 * N, Q> Hs = Ht.transpose();
@@ -252,7 +345,7 @@ struct Corotational {
           for (int i = 0; i < 3; ++i) {
             const Scalar v = d.lambda * M(3 * a + i, 3 * b + j) + d.mu * M(3 * a + j, 3 * b + i) + (i == j ? l : 0.0);
             K(3 * a + i, 3 * b + j) = v;
-            K(3 * b + j, 3 * a + i) = v;
+            if (!lower) K(3 * b + j, 3 * a + i) = v;
           }
       }
   }
@@ -275,7 +368,7 @@ struct Corotational {
                             const PointArray<QuadraturePoints<E>::size>& e02,
                             const PointArray<QuadraturePoints<E>::size>& e12, const PointMat3<QuadraturePoints<E>::size>& R,
                             const Eigen::Matrix<Scalar, QuadraturePoints<E>::size, 3 * E::num_nodes>& Ht,
-                            ElementMatrix<E>& K) {
+                            ElementMatrix<E>& K, bool lower) {
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     using PA = PointArray<Q>;
     // Z = tr(S) I - sym(S) with S = I + eps: Z_ii = tr(eps) + 2 - eps_ii, Z_ij = -eps_ij.
@@ -345,12 +438,13 @@ struct Corotational {
           for (int j = 0; j < 3; ++j)
             for (int i = 0; i < 3; ++i) K(3 * a + i, 3 * b + j) = Kp(3 * a + i, 3 * b + j);
     }
-    // + 2 mu L_ab I on the lower blocks, then the upper blocks as their mirror.
+    // + 2 mu L_ab I on the lower blocks, then the upper blocks as their mirror (unless only the
+    // lower ones are asked for).
     for (int b = 0; b < N; ++b)
       for (int a = b; a < N; ++a) {
         const Scalar l2 = 2 * d.mu * d.points.L(a, b);
         for (int i = 0; i < 3; ++i) K(3 * a + i, 3 * b + i) += l2;
-        if (a != b)
+        if (a != b && !lower)
           for (int j = 0; j < 3; ++j)
             for (int i = 0; i < 3; ++i) K(3 * b + j, 3 * a + i) = K(3 * a + i, 3 * b + j);
       }

@@ -4,6 +4,8 @@
 #include <plastifem/elastic/hyperelastic.hpp>
 #include <plastifem/elastic/linear.hpp>
 
+#include <utility>
+
 namespace plastifem {
 
 /// An elastic policy: per-element data prepared once from the rest shape and material, then
@@ -19,7 +21,19 @@ concept ElasticModel =
       { M::template prepare<E>(x, m) } -> std::same_as<typename M::template ElementData<E>>;
       { M::template evaluate<E>(data, x, f, K) } -> std::same_as<Scalar>;
       { M::template cauchy_stress<E>(data, x, m) } -> std::same_as<Mat3>;
+      // The point-wise interface (elastic/point_law.hpp): a point law built from the material,
+      // and the element integral over any point set.
+      typename M::Law;
+      { M::template evaluate_points<E>(std::declval<const typename M::Law&>(), std::declval<const PointSet<E>&>(), x, f, K) }
+          -> std::same_as<Scalar>;
     };
+
+/// Whether a model has an exact tangent besides its projected (positive semi-definite) one.
+template <class M>
+constexpr bool has_exact_tangent_v = [] {
+  if constexpr (requires { M::has_exact_tangent; }) return bool(M::has_exact_tangent);
+  else return false;
+}();
 
 static_assert(ElasticModel<Linear, Hex8> && ElasticModel<Corotational, Tet10> &&
               ElasticModel<CorotationalPerElement, Hex8> && ElasticModel<NeoHookean, Tet4> &&

@@ -22,15 +22,11 @@
 // An energy whose domain excludes F (J <= 0 for the ln J and Abaqus forms) makes evaluate()
 // return an infinite energy and NaN forces: the solver's line search then rejects the step
 // that would invert an element, and a state that is already inverted gives a clear error.
-#include <plastifem/core/polar.hpp>
-#include <plastifem/core/symmetric_eigen.hpp>
-#include <plastifem/elastic/small_strain.hpp>
+#include <plastifem/elastic/point_law.hpp>
 
 #include <limits>
 
 namespace plastifem {
-
-using Matrix9 = Eigen::Matrix<Scalar, 9, 9>;  // index (i, j) of F_ij -> i + 3 j (column-major)
 
 namespace detail {
 
@@ -187,7 +183,33 @@ struct Hyperelastic {
   /// Projected: A clamped to positive semi-definite per point (what the solver falls back
   /// to); Exact: the true Jacobian of the force (indefinite under compression, e.g. for ln J
   /// Neo-Hookean when J < 1 in rotational directions).
-  enum class TangentKind { Projected, Exact };
+  using TangentKind = plastifem::TangentKind;
+  static constexpr bool has_exact_tangent = true;
+
+  /// The point law: psi(F) = psi_dev(F) + U(J), P = P_dev + U'(J) cof F,
+  /// A = A_dev + U''(J) cof (x) cof + U'(J) d(cof)/dF (projected to PSD when asked).
+  /// Returns +inf (and NaN P) outside the energy's domain (J <= 0 for the ln J and Abaqus forms).
+  struct Law {
+    Energy energy;
+    explicit Law(const Material& m) : energy(m) {}
+    Scalar evaluate(const Mat3& F, Mat3& P, Matrix9* A, TangentKind kind = TangentKind::Projected) const {
+      Scalar psi, U, dU, ddU;
+      const Scalar J = F.determinant();
+      if (!energy.deviatoric(F, psi, P, A) || !energy.volumetric(J, U, dU, ddU)) {
+        P.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
+        return std::numeric_limits<Scalar>::infinity();
+      }
+      const Mat3 cof = detail::cofactor(F);
+      P += dU * cof;
+      if (A) {
+        const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> c(cof.data());
+        A->noalias() += ddU * c * c.transpose();
+        detail::add_cofactor_derivative(*A, F, dU);
+        if (kind == TangentKind::Projected) project_psd<9>(*A);
+      }
+      return psi + U;
+    }
+  };
 
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
@@ -195,74 +217,82 @@ struct Hyperelastic {
     return evaluate<E>(d, x, f, K, TangentKind::Projected);
   }
 
+  /// `lower`: only K's lower blocks (a >= b) are needed (the solver's assembly reads no
+  /// others); the closed-form Neo-Hookean kernel then leaves the upper ones unset.
   template <FiniteElement E>
   static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
-                         TangentKind tangent) {
+                         TangentKind tangent, bool lower = false) {
     if constexpr (std::is_same_v<Energy, NeoHookeanEnergy> && V == Volumetric::Full)
-      if (!K || tangent == TangentKind::Exact) return evaluate_neo_hookean<E>(d, x, f, K);
-    constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
+      if (!K || tangent == TangentKind::Exact) return evaluate_neo_hookean<E>(d, x, f, K, lower);
+    return integrate<E>(d.energy, d.points.G, d.points.dv, d.volume, x, f, K, tangent);
+  }
+
+  /// The element integral over any point set (a cut element's sub-tetrahedra), with the mean
+  /// dilatation taken over the set; equal to evaluate() over the Gauss rule.
+  template <FiniteElement E>
+  static Scalar evaluate_points(const Law& law, const PointSet<E>& ps, const ElementNodes<E>& x, ElementVector<E>& f,
+                                ElementMatrix<E>* K, TangentKind tangent = TangentKind::Projected) {
+    return integrate<E>(law.energy, ps.G, ps.dv, ps.volume(), x, f, K, tangent);
+  }
+
+  /// The generic integral over the points (G[q], dv[q]) of any container: the fixed Gauss
+  /// arrays of the fused path or a PointSet's vectors.
+  template <FiniteElement E, class Gradients, class Weights>
+  static Scalar integrate(const Energy& energy, const Gradients& Gs, const Weights& dvs, Scalar volume,
+                          const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K, TangentKind tangent) {
+    constexpr int N = E::num_nodes;
     constexpr Scalar inf = std::numeric_limits<Scalar>::infinity();
-    Eigen::Map<ElementNodes<E>> fm(f.data());
-    fm.setZero();
+    const int Q = static_cast<int>(dvs.size());
+    f.setZero();
     if (K) K->setZero();
     auto invalid = [&] {
       f.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
       return inf;
     };
     // Volumetric state: at each point (Full) or once at the mean dilatation.
-    std::array<Mat3, Q> F, cof;
     Scalar Jbar = 0;
-    for (int q = 0; q < Q; ++q) {
-      F[q] = x * d.points.G[q];
-      cof[q] = detail::cofactor(F[q]);
-      Jbar += d.points.dv[q] * F[q].determinant();
-    }
-    Jbar /= d.volume;
+    for (int q = 0; q < Q; ++q) Jbar += dvs[q] * (x * Gs[q]).determinant();
+    Jbar /= volume;
     Scalar U = 0, dU = 0, ddU = 0, W = 0;
     if constexpr (V == Volumetric::MeanDilatation) {
-      if (!d.energy.volumetric(Jbar, U, dU, ddU)) return invalid();
-      W += d.volume * U;
+      if (!energy.volumetric(Jbar, U, dU, ddU)) return invalid();
+      W += volume * U;
     }
     Matrix9 A;
-    Eigen::Matrix<Scalar, 9, 3 * N> T;  // T(ij, 3b + k) = sum_l A_ijkl g_b[l]
     ElementVector<E> dJbar = ElementVector<E>::Zero();
     for (int q = 0; q < Q; ++q) {
-      const ShapeGradients<E>& G = d.points.G[q];
-      const Scalar dv = d.points.dv[q];
+      const ShapeGradients<E>& G = Gs[q];
+      const Scalar dv = dvs[q];
+      const Mat3 F = x * G;
+      const Mat3 cof = detail::cofactor(F);
       Scalar psi;
       Mat3 P;
-      if (!d.energy.deviatoric(F[q], psi, P, K ? &A : nullptr)) return invalid();
+      if (!energy.deviatoric(F, psi, P, K ? &A : nullptr)) return invalid();
       if constexpr (V == Volumetric::Full) {
-        if (!d.energy.volumetric(F[q].determinant(), U, dU, ddU)) return invalid();
+        if (!energy.volumetric(F.determinant(), U, dU, ddU)) return invalid();
         psi += U;
         if (K) {
-          const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> c(cof[q].data());
+          const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> c(cof.data());
           A.noalias() += ddU * c * c.transpose();
         }
       } else if (K) {
-        Eigen::Map<ElementNodes<E>>(dJbar.data()).noalias() += (dv / d.volume) * cof[q] * G.transpose();
+        Eigen::Map<ElementNodes<E>>(dJbar.data()).noalias() += (dv / volume) * cof * G.transpose();
       }
-      P += dU * cof[q];
+      P += dU * cof;
       W += dv * psi;
-      fm.noalias() += (dv * P) * G.transpose();
       if (K) {
-        detail::add_cofactor_derivative(A, F[q], dU);
+        detail::add_cofactor_derivative(A, F, dU);
         if (tangent == TangentKind::Projected) project_psd<9>(A);
-        for (int b = 0; b < N; ++b)
-          for (int k = 0; k < 3; ++k)
-            T.col(3 * b + k) = A.col(k) * G(b, 0) + A.col(k + 3) * G(b, 1) + A.col(k + 6) * G(b, 2);
-        for (int a = 0; a < N; ++a)
-          K->template middleRows<3>(3 * a).noalias() +=
-              dv * (G(a, 0) * T.template topRows<3>() + G(a, 1) * T.template middleRows<3>(3) +
-                    G(a, 2) * T.template bottomRows<3>());
       }
+      detail::add_point_contribution<E>(G, dv, P, K ? &A : nullptr, f, K);
     }
     if constexpr (V == Volumetric::MeanDilatation)
       if (K) {
         // V U'' b b^T: positive semi-definite wherever U'' >= 0 (all three energies near J = 1).
-        const Scalar c = d.volume * (tangent == TangentKind::Projected ? std::max(ddU, 0.0) : ddU);
+        const Scalar c = volume * (tangent == TangentKind::Projected ? std::max(ddU, 0.0) : ddU);
         K->noalias() += c * dJbar * dJbar.transpose();
       }
+    (void)N;
     return W;
   }
 
@@ -275,7 +305,7 @@ struct Hyperelastic {
   /// rank-Q products per block, about a quarter of the generic cost on Hex8.
   template <FiniteElement E>
   static Scalar evaluate_neo_hookean(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f,
-                                     ElementMatrix<E>* K) {
+                                     ElementMatrix<E>* K, bool lower = false) {
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     const Scalar mu = d.energy.mu, lambda = d.energy.lambda;
     Eigen::Map<ElementNodes<E>> fm(f.data());
@@ -312,7 +342,7 @@ struct Hyperelastic {
                      Hc.template middleRows<3>(3 * a).lazyProduct(Hb).transpose();
           Kab.diagonal().array() += mu * L(a, b);
           K->template block<3, 3>(3 * a, 3 * b) = Kab;
-          if (a != b) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
+          if (a != b && !lower) K->template block<3, 3>(3 * b, 3 * a) = Kab.transpose();
         }
     }
     return W;

@@ -2,7 +2,7 @@
 // Linear elasticity: f = K0 (x - X0), tangent K0 (seed 001 sections 3.5-3.6).
 // Not invariant under rotation: a rigidly rotated element feels "ghost" forces, which is why
 // Corotational exists (tests/test_elastic.cpp measures them).
-#include <plastifem/elastic/small_strain.hpp>
+#include <plastifem/elastic/small_strain_law.hpp>
 
 namespace plastifem {
 
@@ -31,6 +31,21 @@ struct LinearElastic {
     f.noalias() = d.K0 * u;
     if (K) *K = d.K0;
     return 0.5 * u.dot(f);
+  }
+  /// The solver's signature (tangent kind and lower-blocks-only: the same K0 either way).
+  template <FiniteElement E>
+  static Scalar evaluate(const ElementData<E>& d, const ElementNodes<E>& x, ElementVector<E>& f, ElementMatrix<E>* K,
+                         TangentKind, bool) {
+    return evaluate<E>(d, x, f, K);
+  }
+
+  /// The point law (elastic/small_strain_law.hpp) and the element integral over any point set
+  /// (a cut element's sub-tetrahedra); over the Gauss rule it equals evaluate().
+  using Law = SmallStrainLaw;
+  template <FiniteElement E>
+  static Scalar evaluate_points(const Law& law, const PointSet<E>& ps, const ElementNodes<E>& x, ElementVector<E>& f,
+                                ElementMatrix<E>* K, TangentKind = TangentKind::Projected) {
+    return detail::small_strain_points<E>(law, V == Volumetric::MeanDilatation, ps, x, Mat3::Identity(), f, K);
   }
 
   /// Cauchy stress at the element centre: sigma = C sym(grad u).
