@@ -160,7 +160,7 @@ TEST_CASE("mesh validation gives clear errors", "[mesh][errors]") {
   }
   SECTION("flat element") {
     X.col(3) = Vec3(0.3, 0.3, 0.0);
-    REQUIRE(contains(error_of([&] { Mesh<Tet4>(X, {{0, 1, 2, 3}}); }), "element 0 is degenerate: det J"));
+    REQUIRE(contains(error_of([&] { Mesh<Tet4>(X, {{0, 1, 2, 3}}); }), "element 0 is degenerate: scaled det J"));
   }
   SECTION("Hex8 inverted at one corner only (non-convex)") {
     // Push node 6 through the opposite face: det J < 0 near corner 6 while the centre may be fine.

@@ -5,7 +5,10 @@
 #include <plastifem/element/tet10.hpp>
 #include <plastifem/element/tet4.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <concepts>
+#include <limits>
 
 namespace plastifem {
 
@@ -44,6 +47,47 @@ template <FiniteElement E>
 Eigen::Matrix<Scalar, E::num_nodes, 3> physical_gradient(const ElementNodes<E>& X, const Vec3& xi) {
   const auto dN = E::gradient(xi);
   return dN * (X * dN).inverse();
+}
+
+/// What the shape check of one element found: the smallest scaled Jacobian determinant over
+/// its corners and the points of its mass rule, and where.
+struct ShapeCheck {
+  Scalar min_scaled_jacobian = 1;  ///< det J of the element scaled to a unit longest edge, / that of the reference
+  bool at_corner = false;          ///< the minimum is at a corner (else at a quadrature point)
+  int where = 0;                   ///< which corner or point
+  /// Degenerate below 1e-10 of a unit cube's value, inverted below -1e-10.
+  bool valid() const { return min_scaled_jacobian > 1e-10; }
+  bool inverted() const { return min_scaled_jacobian < -1e-10; }
+};
+
+/// The shape check of one element (rest shape or current configuration): det J at every corner
+/// and at every point of the mass rule, for the element translated to its first node and scaled
+/// to a unit longest edge. Scale-free: a valid element scaled by 1e200 or 1e-120 passes (its
+/// raw det J over- or underflows), and a NaN coordinate fails.
+template <FiniteElement E>
+ShapeCheck check_shape(const ElementNodes<E>& X) {
+  ShapeCheck r;
+  r.min_scaled_jacobian = std::numeric_limits<Scalar>::max();
+  Scalar h = 0;
+  for (const auto& ed : E::edges) h = std::max(h, (X.col(ed[0]) - X.col(ed[1])).cwiseAbs().maxCoeff());
+  if (!(h > 0) || !std::isfinite(h)) {
+    r.min_scaled_jacobian = std::numeric_limits<Scalar>::quiet_NaN();
+    return r;
+  }
+  ElementNodes<E> Y = (X.colwise() - X.col(0)) / h;  // longest edge component 1: no overflow
+  Scalar len = 0;
+  for (const auto& ed : E::edges) len = std::max(len, (Y.col(ed[0]) - Y.col(ed[1])).norm());
+  Y /= len;  // longest edge exactly of unit length
+  const Scalar scale = E::reference_volume;  // det J of the reference element mapped to itself is 1
+  const auto Xref = E::reference_nodes();
+  const auto q = E::template quadrature<E::mass_degree>();
+  auto check = [&](const Vec3& xi, bool corner, int k) {
+    const Scalar s = jacobian<E>(Y, xi).determinant() * scale;
+    if (!(s >= r.min_scaled_jacobian)) r = {std::isnan(s) ? std::numeric_limits<Scalar>::quiet_NaN() : s, corner, k};
+  };
+  for (int a = 0; a < E::num_vertices; ++a) check(Xref.col(a), true, a);
+  for (int k = 0; k < q.size; ++k) check(q.points[k], false, k);
+  return r;
 }
 
 /// Volume of an element, exact for the element's own geometry: det J has the degree of the

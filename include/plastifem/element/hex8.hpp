@@ -68,8 +68,11 @@ struct Hex8 {
     static_assert(Degree >= 0 && Degree <= 5, "hexahedron rules are tabulated up to 3x3x3 (degree 5)");
     return hex_gauss<(Degree + 2) / 2>();
   }
-  /// Full integration (2x2x2): stiffness and mass have per-variable degree 2.
-  static constexpr int stiffness_degree = 2, mass_degree = 2;
+  /// Full integration: stiffness 2x2x2 (the textbook rule, exact for the stiffness of a
+  /// parallelepiped); mass 3x3x3, exact for trilinear geometry: N_a N_b has per-variable degree
+  /// 2 and det J of a distorted (non-parallelepiped) hex degree 2 more. 2x2x2 was exact for
+  /// parallelepipeds only, and the thick shells and tubes plasticity targets are not.
+  static constexpr int stiffness_degree = 2, mass_degree = 4;
 };
 
 }  // namespace plastifem

@@ -103,6 +103,8 @@ class Mesh {
   /// worth knowing but not fatal.
   MeshReport validate() const {
     MeshReport r;
+    if (num_elements() == 0)
+      fail<MeshError>("the mesh has no elements ({} nodes): nothing to simulate", num_nodes());
     for (Index i = 0; i < num_nodes(); ++i)
       if (!nodes_.col(i).allFinite())
         fail<MeshError>("node {} has a non-finite coordinate ({}, {}, {})", i, nodes_(0, i), nodes_(1, i),
@@ -123,35 +125,40 @@ class Mesh {
     }
     for (Index i = 0; i < num_nodes(); ++i)
       if (!used[i]) r.unused_nodes.push_back(i);
+    check_duplicates();
     return r;
   }
 
  private:
-  // det J scaled by h^3 / V_ref (h: longest element edge), so that the test does not depend on
-  // units; an element is degenerate below 1e-10 of a unit cube's value and inverted below -1e-10.
+  // The scale-free shape check of element/element.hpp: det J of the element scaled to a unit
+  // longest edge, relative to the reference element's; degenerate below 1e-10 (of a unit
+  // cube's value), inverted below -1e-10.
   Scalar check_jacobian(Index e) const {
-    const ElementNodes<E> X = element_nodes(e);
-    Scalar h = 0;
-    for (const auto& ed : E::edges) h = std::max(h, (X.col(ed[0]) - X.col(ed[1])).norm());
-    const Scalar scale = E::reference_volume / (h * h * h);
-    const auto Xref = E::reference_nodes();
-    const auto q = E::template quadrature<E::mass_degree>();
-    Scalar worst = std::numeric_limits<Scalar>::max();
-    auto check = [&](const Vec3& xi, const char* what, int k) {
-      const Scalar s = jacobian<E>(X, xi).determinant() * scale;
-      if (!(s > 1e-10)) {
-        if (s < -1e-10)
-          fail<MeshError>("element {} is inverted: det J = {:.3g} at {} {} (reorder its nodes: the {} "
-                          "numbering is documented in element/{}.hpp)",
-                          e, s / scale, what, k, E::name, lower(E::name));
-        fail<MeshError>("element {} is degenerate: det J = {:.3g} at {} {} (zero or near-zero volume)", e,
-                        s / scale, what, k);
-      }
-      worst = std::min(worst, s);
-    };
-    for (int a = 0; a < E::num_vertices; ++a) check(Xref.col(a), "corner", a);
-    for (int k = 0; k < q.size; ++k) check(q.points[k], "quadrature point", k);
-    return worst;
+    const ShapeCheck c = check_shape<E>(element_nodes(e));
+    const char* what = c.at_corner ? "corner" : "quadrature point";
+    if (c.inverted())
+      fail<MeshError>("element {} is inverted: scaled det J = {:.3g} at {} {} (reorder its nodes: the {} "
+                      "numbering is documented in element/{}.hpp)",
+                      e, c.min_scaled_jacobian, what, c.where, E::name, lower(E::name));
+    if (!c.valid())
+      fail<MeshError>("element {} is degenerate: scaled det J = {:.3g} at {} {} (zero or near-zero volume, or a "
+                      "non-finite coordinate)",
+                      e, c.min_scaled_jacobian, what, c.where);
+    return c.min_scaled_jacobian;
+  }
+  // Two elements over the same nodes (in any order) would double their mass and stiffness.
+  void check_duplicates() const {
+    std::vector<std::pair<Connectivity, Index>> sorted(elements_.size());
+    for (Index e = 0; e < num_elements(); ++e) {
+      sorted[e] = {elements_[e], e};
+      std::sort(sorted[e].first.begin(), sorted[e].first.end());
+    }
+    std::sort(sorted.begin(), sorted.end());
+    for (size_t k = 1; k < sorted.size(); ++k)
+      if (sorted[k].first == sorted[k - 1].first)
+        fail<MeshError>("elements {} and {} have the same nodes (a duplicated element would count its mass and "
+                        "stiffness twice)",
+                        std::min(sorted[k - 1].second, sorted[k].second), std::max(sorted[k - 1].second, sorted[k].second));
   }
   static std::string lower(std::string s) {
     for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
