@@ -4,9 +4,9 @@
 //
 //   consistent mass   m_ab = rho int N_a N_b dV             (block m_ab I3)
 //   HRZ-lumped mass   m_aa = diag(m) * sum(m) / tr(m)       (Hinton-Rock-Zienkiewicz)
-//   body force        f_a  = rho int N_a g dV                (gravity: consistent nodal loads)
-// Both integrals use the element's mass rule (E::mass_degree), exact for N_a N_b on affine
-// elements.
+//   body force        f_a  = rho int N_a g dV  with the consistent mass,  m_aa g  with the lumped
+// Both integrals use the element's mass rule (E::mass_degree), exact for N_a N_b det J on the
+// element's own geometry (Tet4, Tet10 with straight edges, trilinear Hex8).
 #include <plastifem/assembly/assembler.hpp>
 
 namespace plastifem {
@@ -45,17 +45,27 @@ void assemble_mass(const Mesh<E>& mesh, const Assembler<E>& assembler, Scalar de
     assembler.add_element_scalar_matrix(e, element_mass<E>(mesh.element_nodes(e), density, kind), M.values());
 }
 
-/// Consistent nodal loads of a body force per unit mass g (gravity): f_a = rho int N_a g dV.
+/// Nodal loads of a body force per unit mass g (gravity), paired with the mass matrix so that
+/// an unconstrained body falls at exactly g: with the consistent mass, the consistent loads
+/// f_a = rho int N_a g dV (= M 1g, since sum_b N_b = 1); with the lumped mass, f_a = m_aa g
+/// (= M_L 1g). Consistent loads with a lumped mass would not: on Tet10 the corner loads point
+/// against gravity while the corner masses are positive. Size: 3 x the mesh's nodes.
 template <FiniteElement E>
-Vector body_force_load(const Mesh<E>& mesh, Scalar density, const Vec3& g) {
+Vector body_force_load(const Mesh<E>& mesh, Scalar density, const Vec3& g, MassKind kind = MassKind::Consistent) {
   Vector F = Vector::Zero(3 * mesh.num_nodes());
   const auto q = E::template quadrature<E::mass_degree>();
   for (Index e = 0; e < mesh.num_elements(); ++e) {
     const ElementNodes<E> X = mesh.element_nodes(e);
+    const auto& c = mesh.element(e);
+    if (kind == MassKind::Lumped) {
+      const auto m = element_mass<E>(X, density, MassKind::Lumped);
+      for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * c[a]) += m(a, a) * g;
+      continue;
+    }
     for (int k = 0; k < q.size; ++k) {
       const Scalar dm = density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
       const auto Nk = E::shape(q.points[k]);
-      for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * mesh.element(e)[a]) += dm * Nk[a] * g;
+      for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * c[a]) += dm * Nk[a] * g;
     }
   }
   return F;
