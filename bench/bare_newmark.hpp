@@ -15,7 +15,7 @@ namespace plastifem::bench {
 template <FiniteElement E, class Model>
 class BareNewmark {
   static constexpr int N = E::num_nodes;
-  static constexpr bool has_exact_tangent = requires { Model::TangentKind::Exact; };
+  static constexpr bool has_exact_tangent = has_exact_tangent_v<Model>;
 
  public:
   BareNewmark(const Mesh<E>& mesh, const Material& material, const std::vector<Index>& fixed, const Vec3& g,
@@ -32,48 +32,49 @@ class BareNewmark {
     gravity_ = body_force_load(mesh, material.density, g);
     linear_.set_threads(threads);
     f_int_.resize(n), f_ext_.resize(n), r_.resize(n), du_.resize(n), rhs_.resize(n);
-    u_try_.resize(n), a_try_.resize(n), v_try_.resize(n), a_start_.resize(n);
+    u_try_.resize(n), a_try_.resize(n), v_try_.resize(n), a_start_.resize(n), f_lin_.resize(n);
     initial_acceleration();
   }
 
+  /// The Solver's real-time step (solver/dynamics.hpp): the linearisation at u_n kept from the
+  /// end of the previous step, one solve, then the new state evaluated (force and tangent, the
+  /// next step's linearisation) and its residual computed for the report.
   void step(Scalar dt) {
     const Scalar beta = 0.25, gamma = 0.5;
     a_start_ = a_;
     const Scalar c0 = 1 / (beta * dt * dt);
     external_force();
+    if (!linearised_) {
+      assemble(u_, &K_);
+      f_lin_ = f_int_;
+      linearised_ = true;
+    }
     u_try_ = u_;
     for (Index i = 0; i < num_dofs(); ++i)
       if (constrained_[i]) u_try_[i] = 0;  // fixed: prescribed value 0
-    assemble(u_try_, &K_);
-    a_try_ = c0 * (u_try_ - u_) - c0 * dt * v_ - (1 / (2 * beta) - 1) * a_start_;
-    v_try_ = v_ + dt * ((1 - gamma) * a_start_ + gamma * a_try_);
-    M_.multiply(a_try_, r_, threads_);
-    r_ += f_int_ - f_ext_;
-    const Scalar rnorm = free_norm(r_);
-    if (!std::isfinite(rnorm)) fail<SolverError>("bare step: residual not finite");
-    scale_ = std::max({free_norm(f_ext_), free_norm(f_int_), 1e-30});  // the Solver reports it
+    const Scalar f_ext_norm = free_norm(f_ext_);
+    residual(u_try_, f_lin_, c0, dt, beta, gamma, f_ext_norm);
     rhs_ = -r_;
-    for (Index i = 0; i < num_dofs(); ++i)
-      if (constrained_[i]) rhs_[i] = 0;
+    constrained_blocks_.zero(rhs_);
     if (first_increment_.size() == num_dofs()) du_ = first_increment_;
     else du_.setZero();
-    for (Index i = 0; i < num_dofs(); ++i)
-      if (constrained_[i]) du_[i] = 0;
+    constrained_blocks_.zero(du_);
     const Scalar* m = M_.values();
     const Scalar* k = K_.values();
     Scalar* a = A_.values();
-    for (Index i = 0; i < A_.num_values(); ++i) a[i] = c0 * m[i] + 1.0 * k[i];
+    for (Index i = 0; i < A_.num_values(); ++i) a[i] = c0 * m[i] + k[i];
     constrained_blocks_.apply(A_);
-    constrained_blocks_.zero(rhs_);
     linear_.solve(A_, rhs_, du_, linear_.settings().tolerance, false);
     first_increment_ = du_;
     u_try_ += du_;
-    a_try_ = c0 * (u_try_ - u_) - c0 * dt * v_ - (1 / (2 * beta) - 1) * a_start_;
-    v_try_ = v_ + dt * ((1 - gamma) * a_start_ + gamma * a_try_);
-    if (!u_try_.allFinite() || !v_try_.allFinite()) fail<SolverError>("bare step: non-finite state");
+    assemble(u_try_, &K_);
+    if (!f_int_.allFinite() || !u_try_.allFinite()) fail<SolverError>("bare step: non-finite state");
+    residual(u_try_, f_int_, c0, dt, beta, gamma, f_ext_norm);
+    if (!v_try_.allFinite() || !a_try_.allFinite()) fail<SolverError>("bare step: non-finite state");
     u_.swap(u_try_);
     v_.swap(v_try_);
     a_.swap(a_try_);
+    f_lin_.swap(f_int_);
   }
 
   const Vector& displacement() const { return u_; }
@@ -110,14 +111,27 @@ class BareNewmark {
           ElementNodes<E> x;
           const auto& c = mesh_.element(e);
           for (int b = 0; b < N; ++b) x.col(b) = X_.segment<3>(3 * c[b]) + u.segment<3>(3 * c[b]);
-          if constexpr (has_exact_tangent)
-            Model::template evaluate<E>(data_[e], x, fe, K ? &Ke : nullptr, Model::TangentKind::Exact);
-          else
-            Model::template evaluate<E>(data_[e], x, fe, K ? &Ke : nullptr);
+          Model::template evaluate<E>(data_[e], x, fe, K ? &Ke : nullptr,
+                                      has_exact_tangent ? TangentKind::Exact : TangentKind::Projected, true);
           for (int b = 0; b < N; ++b) f_int_.segment<3>(3 * c[b]) += fe.template segment<3>(3 * b);
           if (K) assembler_.add_element_matrix(e, Ke, values);
         },
         threads_);
+  }
+
+  /// r_ = M a(u) + f - f_ext with the Newmark a(u), v(u); scale_ as the Solver reports it.
+  Scalar residual(const Vector& u, const Vector& f, Scalar c0, Scalar dt, Scalar beta, Scalar gamma, Scalar f_ext_norm) {
+    a_try_ = c0 * (u - u_) - c0 * dt * v_ - (1 / (2 * beta) - 1) * a_start_;
+    for (Index i = 0; i < num_dofs(); ++i)
+      if (constrained_[i]) a_try_[i] = 0;
+    v_try_ = v_ + dt * ((1 - gamma) * a_start_ + gamma * a_try_);
+    for (Index i = 0; i < num_dofs(); ++i)
+      if (constrained_[i]) v_try_[i] = 0;
+    M_.multiply(a_try_, r_, threads_);
+    const Scalar inertia = free_norm(r_);
+    r_ += f - f_ext_;
+    scale_ = std::max({f_ext_norm, free_norm(f), inertia, 0.0});
+    return free_norm(r_);
   }
 
   Scalar free_norm(const Vector& v) const {
@@ -137,7 +151,8 @@ class BareNewmark {
   ConstrainedBlocks constrained_blocks_;
   BlockSymmetricMatrix M_, K_, A_;
   Vector X_, u_, v_, a_, gravity_;
-  Vector f_int_, f_ext_, r_, du_, rhs_, u_try_, a_try_, v_try_, a_start_, first_increment_;
+  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_try_, a_try_, v_try_, a_start_, first_increment_;
+  bool linearised_ = false;
 };
 
 }  // namespace plastifem::bench

@@ -73,6 +73,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   SolverSettings st;
   st.newton.exact_tangent = exact_tangent;
   st.linear = {kind, 1e-6, cg_cap > 0 ? cg_cap : 1000};  // CG to 1e-6 relative, warm-started (SCENES / issue targets)
+  st.linear.accept_capped = cg_cap > 0;                   // a fixed-cost step: the cap is meant
   st.newmark.mode = mode;
   st.threads = threads;
 #ifdef _OPENMP

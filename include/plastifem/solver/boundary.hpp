@@ -1,10 +1,34 @@
 #pragma once
-// Boundary conditions and loads, stored as the solver needs them at step time: constrained
-// dofs with a displacement that may vary in time, and external force vectors precomputed once
-// (consistent nodal loads) and scaled by a load curve.
-#include <plastifem/assembly/assembler.hpp>
+// Dirichlet conditions as sets with handles, so that a grasper can attach, move and let go.
+//
+// A constraint set is a list of nodes, a mask of components, and a prescribed motion u(t, X).
+// Sets apply in the order they were added; where two sets constrain the same dof, the later one
+// wins, and releasing it lets the earlier one apply again. A handle names the set for
+// release() and replace().
+//
+// In dynamics the velocity and acceleration at constrained dofs come from the prescribed path
+// itself, never from Newmark-differencing the prescribed displacements (which, after any kink
+// of the path, alternates in sign and grows like 1 / dt, and through the consistent mass
+// coupling M_fc a_c feeds into the free dofs and the reactions). The user may give the
+// velocity and acceleration of the path; otherwise they are taken from one-sided (backward)
+// differences of the path at t, of second order,
+//   v(t) = (3 g(t) - 4 g(t - h) + g(t - 2h)) / (2h),
+//   a(t) = (2 g(t) - 5 g(t - h) + 4 g(t - 2h) - g(t - 3h)) / h^2,
+// (evaluated as differences of neighbouring values, so that a constant path gives exactly 0)
+// with h = min(dt / 16, 1e-4): backward, so that a path held constant from the previous step on
+// (a grasp that stops) gives v = a = 0 exactly, and a path linear over the step (a ramp) gives
+// its slope and zero acceleration exactly; h well inside the step, so that a kink at a step
+// boundary affects one step only; h no smaller than it must be for the round-off of the second
+// difference (12 eps |g| / h^2: 3e-7 |g| at h = 1e-4, for paths of unit time scale). Fixed dofs
+// (no path) have v = a = 0.
+#include <plastifem/core/error.hpp>
+#include <plastifem/core/types.hpp>
 
+#include <algorithm>
+#include <cstdint>
 #include <functional>
+#include <span>
+#include <vector>
 
 namespace plastifem {
 
@@ -23,19 +47,159 @@ struct DofMask {
   bool operator[](int d) const { return d == 0 ? x : d == 1 ? y : z; }
 };
 
-/// Displacement of a constrained node: at time t, for rest position X.
+/// Displacement (or its velocity, or acceleration) of a constrained node at time t, for rest
+/// position X.
 using PrescribedDisplacement = std::function<Vec3(Scalar time, const Vec3& rest_position)>;
 
-struct DirichletCondition {
-  std::vector<Index> nodes;
-  DofMask mask;
+/// A prescribed path: the displacement, and optionally its exact time derivatives.
+struct PrescribedMotion {
   PrescribedDisplacement displacement;  ///< empty: fixed (zero)
+  PrescribedDisplacement velocity;      ///< empty: one-sided differences of `displacement`
+  PrescribedDisplacement acceleration;  ///< empty: differences of `velocity`, or of `displacement`
 };
 
-struct ExternalLoad {
-  Vector force;  ///< consistent nodal force at curve value 1
-  LoadCurve curve;
-  std::string what;
+/// Names a constraint set (Solver::fix, prescribe, grasp) for release() and replace().
+struct ConstraintHandle {
+  std::uint32_t id = 0;  ///< 0: none
+  explicit operator bool() const { return id != 0; }
+  friend bool operator==(ConstraintHandle, ConstraintHandle) = default;
+};
+
+/// Values of a path at time t: the entries at constrained dofs, others untouched.
+struct PathValues {
+  Vector u, v, a;
+};
+
+class Constraints {
+ public:
+  Constraints() = default;
+  explicit Constraints(Index num_nodes) : num_nodes_(num_nodes) {}
+
+  /// A set: nodes, motion, mask, and optionally one constant displacement per node added to the
+  /// motion's (a grasp holds each node at its displacement when grasped, plus the grasper's path).
+  ConstraintHandle add(std::span<const Index> nodes, PrescribedMotion motion, DofMask mask,
+                       std::vector<Vec3> offsets = {}) {
+    check_motion(motion);
+    if (!offsets.empty() && offsets.size() != nodes.size())
+      fail<InvalidArgument>("constraint: {} offsets for {} nodes", offsets.size(), nodes.size());
+    for (const Vec3& o : offsets)
+      if (!o.allFinite()) fail<InvalidArgument>("constraint: offsets must be finite");
+    sets_.push_back({++next_id_, std::vector<Index>(nodes.begin(), nodes.end()), mask, std::move(motion),
+                     std::move(offsets)});
+    ++version_;
+    return {next_id_};
+  }
+  /// Removes a set; its dofs become free (or fall back to an earlier set on the same dofs).
+  void remove(ConstraintHandle h) {
+    sets_.erase(find(h));
+    ++version_;
+  }
+  /// Gives a set a new motion (same nodes and components).
+  void replace(ConstraintHandle h, PrescribedMotion motion) {
+    check_motion(motion);
+    find(h)->motion = std::move(motion);
+    ++version_;
+  }
+  bool contains(ConstraintHandle h) const {
+    return std::any_of(sets_.begin(), sets_.end(), [&](const Set& s) { return s.id == h.id; });
+  }
+  /// Changes whenever a set is added, removed or replaced.
+  std::uint64_t version() const { return version_; }
+  bool empty() const { return sets_.empty(); }
+  Index num_nodes() const { return num_nodes_; }
+
+  /// Per standard dof (3 x nodes): 1 if some set constrains it.
+  std::vector<char> constrained_dofs() const {
+    std::vector<char> c(3 * static_cast<size_t>(num_nodes_), 0);
+    for (const Set& s : sets_)
+      for (Index i : s.nodes)
+        for (int d = 0; d < 3; ++d)
+          if (s.mask[d]) c[3 * i + d] = 1;
+    return c;
+  }
+  /// Whether any set has a non-zero path (a fixed-only scene skips path evaluation).
+  bool any_motion() const {
+    return std::any_of(sets_.begin(), sets_.end(),
+                       [](const Set& s) { return bool(s.motion.displacement) || !s.offsets.empty(); });
+  }
+
+  /// Writes the prescribed displacement at time t into u, and (when v, a are given) the path's
+  /// velocity and acceleration, at every constrained dof; other entries are untouched. `dt`
+  /// (the step that ends at t) sets the difference step h = min(dt / 16, 1e-4).
+  template <class NodePosition>
+  void evaluate(Scalar t, Scalar dt, const NodePosition& X, Vector& u, Vector* v, Vector* a) const {
+    const Scalar h = std::min(dt / 16, Scalar(1e-4));
+    for (const Set& s : sets_) {
+      for (size_t k = 0; k < s.nodes.size(); ++k) {
+        const Index i = s.nodes[k];
+        Vec3 g = Vec3::Zero(), gv = Vec3::Zero(), ga = Vec3::Zero();
+        const auto& m = s.motion;
+        if (m.displacement) {
+          const Vec3 Xi = X(i);
+          g = checked(m.displacement(t, Xi), "displacement", i, t);
+          if (v || a) {
+            if (m.velocity) {
+              gv = checked(m.velocity(t, Xi), "velocity", i, t);
+            } else {
+              // In differences of neighbouring values, so that a constant path gives exactly 0.
+              const Vec3 g1 = checked(m.displacement(t - h, Xi), "displacement", i, t - h);
+              const Vec3 g2 = checked(m.displacement(t - 2 * h, Xi), "displacement", i, t - 2 * h);
+              const Vec3 d1 = g - g1, d2 = g1 - g2;
+              gv = (3 * d1 - d2) / (2 * h);
+              if (a && !m.acceleration) {
+                const Vec3 g3 = checked(m.displacement(t - 3 * h, Xi), "displacement", i, t - 3 * h);
+                ga = (2 * d1 - 3 * d2 + (g2 - g3)) / (h * h);
+              }
+            }
+            if (m.acceleration) {
+              ga = checked(m.acceleration(t, Xi), "acceleration", i, t);
+            } else if (a && m.velocity) {
+              const Vec3 v1 = checked(m.velocity(t - h, Xi), "velocity", i, t - h);
+              const Vec3 v2 = checked(m.velocity(t - 2 * h, Xi), "velocity", i, t - 2 * h);
+              ga = (3 * (gv - v1) - (v1 - v2)) / (2 * h);
+            }
+          }
+        }
+        if (!s.offsets.empty()) g += s.offsets[k];
+        for (int d = 0; d < 3; ++d) {
+          if (!s.mask[d]) continue;
+          u[3 * i + d] = g[d];
+          if (v) (*v)[3 * i + d] = gv[d];
+          if (a) (*a)[3 * i + d] = ga[d];
+        }
+      }
+    }
+  }
+
+ private:
+  struct Set {
+    std::uint32_t id;
+    std::vector<Index> nodes;
+    DofMask mask;
+    PrescribedMotion motion;
+    std::vector<Vec3> offsets;  ///< per node, added to the motion's displacement (empty: none)
+  };
+  std::vector<Set>::iterator find(ConstraintHandle h) {
+    auto it = std::find_if(sets_.begin(), sets_.end(), [&](const Set& s) { return s.id == h.id; });
+    if (it == sets_.end())
+      fail<InvalidArgument>("constraint handle {} names no current constraint set (released already?)", h.id);
+    return it;
+  }
+  static void check_motion(const PrescribedMotion& m) {
+    if ((m.velocity || m.acceleration) && !m.displacement)
+      fail<InvalidArgument>("a prescribed motion with a velocity or acceleration needs its displacement too");
+  }
+  static Vec3 checked(const Vec3& x, const char* what, Index node, Scalar t) {
+    if (!x.allFinite())
+      fail<InvalidArgument>("prescribed {} at node {}, t = {} is not finite ({}, {}, {})", what, node, t, x.x(), x.y(),
+                            x.z());
+    return x;
+  }
+
+  Index num_nodes_ = 0;
+  std::vector<Set> sets_;
+  std::uint32_t next_id_ = 0;
+  std::uint64_t version_ = 0;
 };
 
 }  // namespace plastifem

@@ -1,0 +1,452 @@
+#pragma once
+// One Newmark step from a state n to a trial state n+1 (solver/newmark.hpp for the formulas),
+// in the two modes:
+//
+//  - Accurate: Newton on r(u) = 0 (solver/newton.hpp) from the constant-acceleration predictor
+//    (a retry from u_n if that fails), with the tangent assembled lazily, inexact CG, and a line
+//    search on |r| when the exact tangent is in use.
+//  - Real time: one linearised solve at u_n, the classic linearly implicit step SOFA and
+//    VegaFEM take: A du = -r_lin with r_lin = M a + D v + f_int(u_n) + K(u_n) (g - u_n) - f_ext,
+//    the prescribed motion's increment g - u_n at constrained dofs entering through the tangent.
+//    Then the new state is evaluated, force and tangent in one assembly, which the next step
+//    needs anyway as its linearisation: an element the model cannot evaluate there (inverted,
+//    for an energy with ln J), a non-finite value or a CG that did not converge (unless capped on
+//    purpose, LinearSolverSettings::accept_capped) fail the step as in accurate mode, and the
+//    residual it reports is the true |r(u_{n+1})| after the solve. The check costs nothing per
+//    step: the assembly moved from the start of the next step to the end of this one.
+//
+// At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
+// acceleration, when not known, comes from equilibrium at t_n:
+//   M a_n = f_ext(t_n) - f_int(u_n) - D v_n  at the free dofs, a_n = the path's at constrained ones.
+// Failures throw SolverError; the trial state may then hold anything, the state n is untouched.
+#include <plastifem/solver/loads.hpp>
+#include <plastifem/solver/newmark.hpp>
+#include <plastifem/solver/newton.hpp>
+#include <plastifem/solver/state.hpp>
+#include <plastifem/solver/system.hpp>
+
+#include <chrono>
+#include <cmath>
+
+namespace plastifem {
+
+/// What a step works with: the parts of a Solver, by reference.
+template <FiniteElement E, class Elastic>
+struct SolverParts {
+  Discretization<E, Elastic>& body;
+  System<E, Elastic>& system;
+  const Constraints& constraints;
+  const Loads<E>& loads;
+  const SolverSettings& settings;
+  int threads;
+};
+
+template <FiniteElement E, class Elastic, class PlasticState>
+class Dynamics {
+ public:
+  using Parts = SolverParts<E, Elastic>;
+  using StateT = State<PlasticState>;
+  static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
+  static constexpr bool constant_tangent = Elastic::constant_tangent;
+
+  /// Sizes the scratch vectors for n dofs (no allocation in the step loop afterwards).
+  void resize(Index n) {
+    for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_,
+                      &path_.u, &path_.v, &path_.a, &first_increment_})
+      x->setZero(n);
+    linearisation_serial_ = 0;
+  }
+  /// Forgets the real-time linearisation (the element data or the matrices changed).
+  void invalidate() { linearisation_serial_ = 0; }
+
+  /// n -> trial by one step of dt; the trial state gets `serial`. Throws SolverError on failure.
+  StepReport attempt(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial) {
+    if (p.settings.newmark.mode == NewmarkMode::RealTime) return realtime(p, n, trial, dt, serial);
+    // At huge time steps (stiffness-dominated, dt omega >> 1) the constant-acceleration
+    // predictor can start Newton far from the solution, where u_n is the better guess: the
+    // retry costs only when a step fails.
+    try {
+      return accurate(p, n, trial, dt, true, serial);
+    } catch (const SolverError&) {
+      StepReport r = accurate(p, n, trial, dt, false, serial);
+      r.predictor_retries = 1;
+      return r;
+    }
+  }
+
+  /// a = the acceleration of state s from equilibrium (see the file comment).
+  void initial_acceleration(Parts& p, const StateT& s, Vector& a) {
+    p.loads.assemble(s.t, f_ext_);
+    const bool ok = evaluate(p, s.u, f_int_, false, TangentKind::Projected);
+    if (!ok || !f_ext_.allFinite())
+      fail<SolverError>("acceleration at t = {}: the force is not finite{}; the state is unchanged", s.t,
+                        where_invalid(p, s.u));
+    rhs_ = f_ext_ - f_int_;
+    add_damping(p, s.v, -1.0, rhs_);
+    // The path's accelerations at constrained dofs, moved to the right-hand side: - M_fc a_c.
+    path_.a.setZero();
+    if (p.constraints.any_motion()) {
+      work_ = s.u;
+      p.constraints.evaluate(s.t, 1.0, position_of(p), work_, nullptr, &path_.a);
+      p.system.M.multiply(path_.a, work_, p.threads);
+      rhs_ -= work_;
+    }
+    p.system.form_mass();
+    p.system.zero_held(rhs_);
+    // The mass matrix is well conditioned (Jacobi-scaled condition number ~10-50 for the
+    // consistent mass, 1 for the lumped one), so CG reaches round-off in a few dozen products,
+    // where a sparse factorisation costs seconds on large meshes.
+    a.setZero(s.num_dofs());
+    LinearSolver cg({LinearSolverKind::ConjugateGradient, 1e-13, 2000});
+    cg.set_threads(p.threads);
+    if (!cg.solve(p.system.A, rhs_, a).converged) {
+      LinearSolver direct({LinearSolverKind::Direct});
+      direct.solve(p.system.A, rhs_, a);
+    }
+    for (Index d : p.system.constrained_dofs()) a[d] = path_.a[d];
+  }
+
+  /// f = f_int(u), and K(u) into the system's K when asked. Constant-tangent models: K
+  /// assembled once per rest-shape epoch, f_int = K u (Linear: K0 (x - X0) = K u). false if some
+  /// element cannot be evaluated.
+  bool evaluate(Parts& p, const Vector& u, Vector& f, bool with_tangent, TangentKind kind) {
+    if constexpr (constant_tangent) {
+      const auto epoch = p.body.data().epoch();
+      if (!p.system.constant_tangent_current(epoch)) {
+        p.body.assemble(u, f, &p.system.K, kind, p.threads);
+        p.system.set_constant_tangent_current(epoch);
+        p.system.forget_coefficients();
+      }
+      p.system.K.multiply(u, f, p.threads);
+      return f.allFinite();
+    } else {
+      return p.body.assemble(u, f, with_tangent ? &p.system.K : nullptr, kind, p.threads);
+    }
+  }
+
+  /// out += sign D v, D = alpha M + beta K0 (Rayleigh).
+  void add_damping(Parts& p, const Vector& v, Scalar sign, Vector& out) {
+    if (p.settings.rayleigh_mass != 0) {
+      p.system.M.multiply(v, work_, p.threads);
+      out += (sign * p.settings.rayleigh_mass) * work_;
+    }
+    if (p.settings.rayleigh_stiffness != 0) {
+      p.system.rest_stiffness(p.body).multiply(v, work_, p.threads);
+      out += (sign * p.settings.rayleigh_stiffness) * work_;
+    }
+  }
+
+  /// " (element e is inverted ...)" for a non-finite force at u, or "" if none is found.
+  std::string where_invalid(Parts& p, const Vector& u) const {
+    std::string s = p.body.locate_invalid(u);
+    return s.empty() ? " (external loads or prescribed motion not finite)" : s;
+  }
+
+ private:
+  static bool use_exact(const SolverSettings& s) { return has_exact_tangent && s.newton.exact_tangent; }
+
+  /// Node i's rest position, for the prescribed paths.
+  static auto position_of(Parts& p) {
+    return [&mesh = p.body.mesh()](Index i) { return Vec3(mesh.node(i)); };
+  }
+
+  /// The step's fixed data: a_n (the state's, or from equilibrium), f_ext(t_{n+1}), and the
+  /// prescribed path's u, v, a at t_{n+1}.
+  void start_step(Parts& p, const StateT& n, Scalar dt) {
+    if (n.acceleration_known) a_start_ = n.a;
+    else initial_acceleration(p, n, a_start_);
+    const Scalar t1 = n.t + dt;
+    p.loads.assemble(t1, f_ext_);
+    if (!f_ext_.allFinite()) fail<SolverError>("external loads at t = {} are not finite; the state is unchanged", t1);
+    path_.u = n.u;
+    path_.v.setZero();
+    path_.a.setZero();
+    if (p.constraints.any_motion()) p.constraints.evaluate(t1, dt, position_of(p), path_.u, &path_.v, &path_.a);
+  }
+  void set_prescribed(Parts& p, Vector& u) const {
+    for (Index d : p.system.constrained_dofs()) u[d] = path_.u[d];
+  }
+
+  /// a_, v_ from u by Newmark at the free dofs, the path's at constrained ones.
+  void kinematics(Parts& p, const StateT& n, const Newmark& nm, const Vector& u) {
+    nm.acceleration(u, n.u, n.v, a_start_, a_);
+    for (Index d : p.system.constrained_dofs()) a_[d] = path_.a[d];
+    nm.velocity(a_, n.v, a_start_, v_);
+    for (Index d : p.system.constrained_dofs()) v_[d] = path_.v[d];
+  }
+
+  /// r_ = M a(u) + f_int - f_ext + D v(u) (f_int_ holds f_int(u)); returns |r| over the free
+  /// dofs and sets `scale` to the largest term of the balance.
+  Scalar dynamic_residual(Parts& p, const StateT& n, const Newmark& nm, const Vector& u, const Vector& f_int,
+                          Scalar f_ext_norm, Scalar& scale) {
+    kinematics(p, n, nm, u);
+    p.system.M.multiply(a_, r_, p.threads);
+    const Scalar inertia = p.system.free_norm(r_);
+    r_ += f_int - f_ext_;
+    Scalar damping = 0;
+    if (p.settings.rayleigh_mass != 0 || p.settings.rayleigh_stiffness != 0) {
+      work_.setZero();
+      add_damping(p, v_, 1.0, work_);
+      damping = p.system.free_norm(work_);
+      r_ += work_;
+    }
+    scale = std::max({f_ext_norm, p.system.free_norm(f_int), inertia, damping});
+    return p.system.free_norm(r_);
+  }
+
+  // --- accurate mode ----------------------------------------------------------------------
+  struct Problem {
+    Dynamics& d;
+    Parts& p;
+    const StateT& n;
+    Newmark nm;
+    Scalar cm, cd;     ///< A = cm M + K + cd K0
+    TangentKind kind;  ///< exact, or projected after a fall-back
+    Scalar f_ext_norm = 0;
+    bool system_stale = true, tangent_now = false, first_solve = true;
+    Scalar scale_ = 0;
+
+    Scalar residual(const Vector& u, bool with_tangent) {
+      const bool ok = d.evaluate(p, u, d.f_int_, with_tangent, kind);
+      if (with_tangent) system_stale = true;
+      tangent_now = with_tangent;
+      const Scalar r = d.dynamic_residual(p, n, nm, u, d.f_int_, f_ext_norm, scale_);
+      return ok ? r : std::numeric_limits<Scalar>::quiet_NaN();
+    }
+    void tangent(const Vector& u) { residual(u, true); }
+    bool tangent_current() const { return tangent_now; }
+    Scalar scale() const { return scale_; }
+    bool fall_back() {
+      if (kind != TangentKind::Exact) return false;
+      kind = TangentKind::Projected;
+      return true;
+    }
+    static bool eager_tangent() { return false; }
+    Scalar merit(const Vector&) const { return 0; }
+    Scalar slope(const Vector&) const { return 0; }
+    [[noreturn]] void invalid(const Vector& u) const {
+      fail<SolverError>("Newmark step at t = {}: the residual is not finite{}; the state is unchanged", n.t + nm.dt,
+                        d.where_invalid(p, u));
+    }
+    LinearSolveReport solve(int it, Scalar rnorm, Scalar target, Vector& du) {
+      d.rhs_ = -d.r_;
+      p.system.zero_held(d.rhs_);
+      // Inexact Newton: never looser than 0.1 nor tighter than the configured tolerance.
+      const Scalar tol = std::max(p.settings.linear.tolerance, std::min(0.1, 0.5 * target / rnorm));
+      auto attempt = [&] {
+        // CG warm start: the first increment of the previous step (the motion over one step
+        // changes slowly); later increments start from zero.
+        if (it == 0 && n.warm_start.size() == n.num_dofs()) du = n.warm_start;
+        else du.setZero();
+        p.system.zero_held(du);
+        bool same;
+        if constexpr (constant_tangent) same = p.system.same_coefficients(cm, cd);
+        else same = !system_stale;
+        if (!same) {
+          if (cd != 0) p.system.rest_stiffness(p.body);
+          p.system.form(cm, cd);
+          system_stale = false;
+        }
+        return p.system.linear().solve(p.system.A, d.rhs_, du, tol, same);
+      };
+      LinearSolveReport lr;
+      try {
+        lr = attempt();
+      } catch (const SolverError&) {
+        // The exact tangent made the system indefinite (negative pivot, CG breakdown): the
+        // projected tangent from now on. d.u_ is the iterate the tangent belongs to.
+        if (!fall_back()) throw;
+        tangent(d.u_);
+        d.rhs_ = -d.r_;
+        p.system.zero_held(d.rhs_);
+        lr = attempt();
+      }
+      if (first_solve) d.first_increment_ = du;
+      first_solve = false;
+      return lr;
+    }
+  };
+
+  StepReport accurate(Parts& p, const StateT& n, StateT& trial, Scalar dt, bool predictor, std::uint64_t serial) {
+    const auto& st = p.settings;
+    const auto t0 = std::chrono::steady_clock::now();
+    const Newmark nm{st.newmark.beta, st.newmark.gamma, dt};
+    start_step(p, n, dt);
+    // Start from the constant-acceleration predictor u_n + dt v_n + dt^2/2 a_n, with the
+    // constrained dofs at their new values: the first residual is then the change of
+    // acceleration over the step, not the inertia of the whole step, which saves a Newton
+    // iteration (bar90 Hex8 Corotational at dt = 0.01: 3.33 -> 2.51 per step). A linear model
+    // is still solved exactly by one solve from there.
+    if (predictor) nm.predictor(n.u, n.v, a_start_, u_);
+    else u_ = n.u;
+    set_prescribed(p, u_);
+    Problem prob{*this, p, n, nm, nm.c0() + st.rayleigh_mass * nm.c1(), st.rayleigh_stiffness * nm.c1(),
+                 use_exact(st) ? TangentKind::Exact : TangentKind::Projected};
+    prob.f_ext_norm = p.system.free_norm(f_ext_);
+    NewtonOptions o;
+    o.tolerance = st.newton.residual_tolerance;
+    o.increment_tolerance = st.newton.increment_tolerance;
+    o.length = p.body.size();
+    o.max_iterations = st.newton.max_iterations;
+    o.min_iterations = 1;
+    o.stagnation = true;
+    o.constant_tangent = constant_tangent;
+    // Backtracking needs a descent direction for |r|, which only the exact Jacobian guarantees:
+    // with the warped corotational tangent it mostly fails and costs force evaluations (bar720
+    // Tet4 Corotational: 9.2 ms per Newton iteration against 4.8 ms without), so without the
+    // exact tangent Newton takes full steps. A step that fell back to the projected tangent
+    // keeps the search: for the ln J energies it is what rejects a trial step that inverts an
+    // element.
+    o.line_search = st.newton.line_search && use_exact(st);
+    // The tangent is assembled at the predictor. The warped (projected) one is kept for the
+    // whole step unless asked otherwise; the exact one while Newton converges fast (every
+    // iteration reducing |r| by 10 or more), else refreshed (solver/newton.hpp).
+    NewtonResult res;
+    if (use_exact(st) || !st.newton.tangent_once_per_step) {
+      o.refresh_ratio = st.newton.tangent_once_per_step ? 0.1 : 0.0;
+      res = newton(prob, u_, o, ResidualBacktracking{}, du_, u_new_);
+    } else {
+      FrozenTangent<Problem> frozen{prob};
+      res = newton(frozen, u_, o, ResidualBacktracking{}, du_, u_new_);
+    }
+    const Scalar t1 = n.t + dt;
+    if (!res.converged)
+      fail<SolverError>("Newmark step at t = {} did not converge in {} Newton iterations (|r| = {:.3g}, relative "
+                        "{:.3g}); the state is unchanged. Try a smaller dt or more iterations",
+                        t1, res.iterations, res.residual, res.relative_residual);
+    kinematics(p, n, nm, u_);
+    if (!u_.allFinite() || !v_.allFinite() || !a_.allFinite())
+      fail<SolverError>("Newmark step at t = {} produced non-finite values; the state is unchanged", t1);
+    store(n, trial, t1, serial);
+    StepReport rep;
+    rep.newton_iterations = res.iterations;
+    rep.linear_iterations = res.linear_iterations;
+    rep.residual = res.residual;
+    rep.relative_residual = res.relative_residual;
+    rep.convergence = res.convergence;
+    rep.stagnated = res.convergence == Convergence::Stagnated;
+    rep.linear_converged = res.linear_converged;
+    rep.linear_relative_residual = res.linear_relative_residual;
+    rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+  }
+
+  /// A problem whose tangent, once assembled at the step's first iterate, stays: the warped
+  /// tangent's change over one step is far smaller than the dR/dx it omits anyway.
+  template <class P>
+  struct FrozenTangent : P {
+    explicit FrozenTangent(P& p) : P(p) {}
+    bool tangent_current() const { return true; }
+  };
+
+  /// Moves u_, v_, a_ and the step's data into the trial state.
+  void store(const StateT& n, StateT& trial, Scalar t1, std::uint64_t serial) {
+    trial.u.swap(u_);
+    trial.v.swap(v_);
+    trial.a.swap(a_);
+    trial.load.swap(f_ext_);  // recomputed by the next step
+    trial.warm_start.swap(first_increment_);
+    trial.t = t1;
+    trial.acceleration_known = true;
+    trial.plastic = n.plastic;
+    trial.serial = serial;
+  }
+
+  // --- real-time mode ---------------------------------------------------------------------
+  StepReport realtime(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial) {
+    const auto& st = p.settings;
+    const auto t0 = std::chrono::steady_clock::now();
+    const Newmark nm{st.newmark.beta, st.newmark.gamma, dt};
+    const Scalar t1 = n.t + dt;
+    start_step(p, n, dt);
+    TangentKind kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
+    // The linearisation at u_n: kept from the end of the previous step when that step made
+    // this state; else assembled now.
+    if (linearisation_serial_ == 0 || linearisation_serial_ != n.serial) {
+      if (!evaluate(p, n.u, f_lin_, true, kind))
+        fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
+                          where_invalid(p, n.u));
+      linearisation_serial_ = n.serial;
+    }
+    const Scalar cm = nm.c0() + st.rayleigh_mass * nm.c1(), cd = st.rayleigh_stiffness * nm.c1();
+    const Scalar f_ext_norm = p.system.free_norm(f_ext_);
+    Scalar scale = 0;
+    auto linear_residual = [&] {
+      u_ = n.u;
+      set_prescribed(p, u_);
+      dynamic_residual(p, n, nm, u_, f_lin_, f_ext_norm, scale);
+      // The prescribed increment through the tangent: + K(u_n) (g - u_n) at the free rows.
+      bool moved = false;
+      work_.setZero();
+      for (Index d : p.system.constrained_dofs())
+        if (path_.u[d] != n.u[d]) work_[d] = path_.u[d] - n.u[d], moved = true;
+      if (moved) {
+        p.system.K.multiply(work_, rhs_, p.threads);
+        r_ += rhs_;
+      }
+      rhs_ = -r_;
+      p.system.zero_held(rhs_);
+    };
+    auto solve = [&] {
+      if (n.warm_start.size() == n.num_dofs()) du_ = n.warm_start;
+      else du_.setZero();
+      p.system.zero_held(du_);
+      bool same = false;
+      if constexpr (constant_tangent) same = p.system.same_coefficients(cm, cd);
+      if (!same) {
+        if (cd != 0) p.system.rest_stiffness(p.body);
+        p.system.form(cm, cd);
+      }
+      return p.system.linear().solve(p.system.A, rhs_, du_, st.linear.tolerance, same);
+    };
+    linear_residual();
+    LinearSolveReport lr;
+    try {
+      lr = solve();
+    } catch (const SolverError&) {
+      if (kind != TangentKind::Exact) throw;
+      kind = TangentKind::Projected;  // indefinite exact tangent: the projected one
+      linearisation_serial_ = 0;
+      if (!evaluate(p, n.u, f_lin_, true, kind))
+        fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
+                          where_invalid(p, n.u));
+      linearisation_serial_ = n.serial;
+      linear_residual();
+      lr = solve();
+    }
+    first_increment_ = du_;
+    u_ += du_;
+    // The new state, evaluated: the check, the reported residual, and the next linearisation.
+    linearisation_serial_ = 0;
+    const bool ok = evaluate(p, u_, f_int_, true, use_exact(st) ? TangentKind::Exact : TangentKind::Projected);
+    if (!ok || !u_.allFinite())
+      fail<SolverError>("real-time step at t = {}: the new state cannot be evaluated{}; the state is unchanged", t1,
+                        where_invalid(p, u_));
+    if (!lr.converged && !st.linear.accept_capped)
+      fail<SolverError>("real-time step at t = {}: CG did not converge in {} iterations (relative residual {:.3g}); "
+                        "the state is unchanged. Raise the CG cap, or set accept_capped for a fixed-cost step",
+                        t1, lr.iterations, lr.relative_residual);
+    const Scalar rnorm = dynamic_residual(p, n, nm, u_, f_int_, f_ext_norm, scale);
+    if (!v_.allFinite() || !a_.allFinite())
+      fail<SolverError>("real-time step at t = {} produced non-finite values; the state is unchanged", t1);
+    store(n, trial, t1, serial);
+    f_lin_.swap(f_int_);
+    linearisation_serial_ = serial;  // valid for the trial state, if it is committed
+    StepReport rep;
+    rep.newton_iterations = 1;
+    rep.linear_iterations = lr.iterations;
+    rep.residual = rnorm;
+    rep.relative_residual = rnorm / std::max(scale, Scalar(1e-30));
+    rep.convergence = Convergence::OneSolve;
+    rep.linear_converged = lr.converged;
+    rep.linear_relative_residual = lr.relative_residual;
+    rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+  }
+
+  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, first_increment_;
+  PathValues path_;
+  std::uint64_t linearisation_serial_ = 0;  ///< the state f_lin_ and the system's K belong to (0: none)
+};
+
+}  // namespace plastifem

@@ -1,0 +1,162 @@
+#pragma once
+// External loads with handles: nodal forces (one force for many nodes, or one per node), body
+// forces per unit mass (gravity) and surface tractions, each scaled by a load curve.
+//
+// Each load keeps its definition and a force vector at curve value 1, recomputed when what it
+// depends on changes: the dof map (the vector grows with it) and, for body forces, the mass
+// kind, since a body force must pair with the mass matrix for a free body to fall at exactly g
+// (assembly/mass.hpp: consistent loads with the consistent mass, M_L g with the lumped one).
+#include <plastifem/assembly/mass.hpp>
+#include <plastifem/solver/boundary.hpp>
+
+#include <string>
+#include <variant>
+
+namespace plastifem {
+
+/// Names a load for Solver::remove_load.
+struct LoadHandle {
+  std::uint32_t id = 0;
+  explicit operator bool() const { return id != 0; }
+  friend bool operator==(LoadHandle, LoadHandle) = default;
+};
+
+template <FiniteElement E>
+class Loads {
+ public:
+  struct NodalForces {
+    std::vector<Index> nodes;
+    std::vector<Vec3> forces;  ///< one per node
+  };
+  struct BodyForce {
+    Vec3 g;  ///< per unit mass
+  };
+  struct Traction {
+    std::vector<FaceRef> faces;
+    Vec3 t;  ///< per unit reference area
+  };
+  using Definition = std::variant<NodalForces, BodyForce, Traction>;
+
+  LoadHandle add(Definition def, LoadCurve curve, std::string what) {
+    loads_.push_back({++next_id_, std::move(def), std::move(curve), std::move(what), Vector()});
+    ++version_;
+    return {next_id_};
+  }
+  void remove(LoadHandle h) {
+    auto it = std::find_if(loads_.begin(), loads_.end(), [&](const Load& l) { return l.id == h.id; });
+    if (it == loads_.end()) fail<InvalidArgument>("load handle {} names no current load (removed already?)", h.id);
+    loads_.erase(it);
+    ++version_;
+  }
+  void clear() {
+    loads_.clear();
+    ++version_;
+  }
+  bool empty() const { return loads_.empty(); }
+  /// Changes whenever a load is added or removed.
+  std::uint64_t version() const { return version_; }
+
+  /// Recomputes every load's force vector for num_dofs dofs (standard dofs first).
+  void build(const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs) {
+    for (Load& l : loads_) compute(l, mesh, density, mass, num_dofs);
+    built_ = {density, mass, num_dofs};
+  }
+  /// f = sum of curve(t) x load vector. Throws InvalidArgument if a curve gives a non-finite value.
+  void assemble(Scalar t, Vector& f) const {
+    f.setZero();
+    for (const Load& l : loads_) {
+      const Scalar c = l.curve ? l.curve(t) : 1.0;
+      if (!std::isfinite(c)) fail<InvalidArgument>("load curve of the {} gives {} at t = {}", l.what, c, t);
+      if (c != 0) f += c * l.force;
+    }
+  }
+  /// A newly added load's vector needs build_one before use (cheap: that load only).
+  void build_last(const Mesh<E>& mesh) {
+    if (!loads_.empty()) compute(loads_.back(), mesh, built_.density, built_.mass, built_.num_dofs);
+  }
+
+ private:
+  struct Load {
+    std::uint32_t id;
+    Definition def;
+    LoadCurve curve;
+    std::string what;
+    Vector force;  ///< at curve value 1
+  };
+  struct Built {
+    Scalar density = 1;
+    MassKind mass = MassKind::Consistent;
+    Index num_dofs = 0;
+  };
+
+  static void compute(Load& l, const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs) {
+    Vector F = Vector::Zero(num_dofs);
+    if (const auto* n = std::get_if<NodalForces>(&l.def)) {
+      for (size_t k = 0; k < n->nodes.size(); ++k) F.segment<3>(3 * n->nodes[k]) += n->forces[k];
+    } else if (const auto* b = std::get_if<BodyForce>(&l.def)) {
+      F.head(3 * mesh.num_nodes()) = body_force_load(mesh, density, b->g, mass);
+    } else if (const auto* tr = std::get_if<Traction>(&l.def)) {
+      F.head(3 * mesh.num_nodes()) = traction_load(mesh, tr->faces, tr->t);
+    }
+    l.force = std::move(F);
+  }
+
+ public:
+  /// Consistent nodal loads int_face N_a t dA of a traction t (force per unit reference area) on
+  /// boundary faces. Faces are integrated with the element's own shape functions on the face
+  /// (the reference face is mapped into the reference element), with a rule exact for the
+  /// face's N_a times its area element on flat faces.
+  static Vector traction_load(const Mesh<E>& mesh, const std::vector<FaceRef>& faces, const Vec3& t) {
+    Vector F = Vector::Zero(3 * mesh.num_nodes());
+    for (const FaceRef& f : faces) {
+      const ElementNodes<E> X = mesh.element_nodes(f.element);
+      for_each_face_point(f.face, [&](const Vec3& xi, const Vec3& dxi_ds, const Vec3& dxi_dt, Scalar w) {
+        const Mat3 J = jacobian<E>(X, xi);
+        const Scalar dA = (J * dxi_ds).cross(J * dxi_dt).norm();
+        const auto Nf = E::shape(xi);
+        for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * mesh.element(f.element)[a]) += w * dA * Nf[a] * t;
+      });
+    }
+    return F;
+  }
+
+  /// Calls f(xi, dxi/ds, dxi/dt, weight) at the quadrature points of local face `face`, mapped
+  /// into the reference element. Tri faces: 3-point degree-2 rule (exact for Tet10's quadratic
+  /// N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a times a bilinear dA).
+  template <class F>
+  static void for_each_face_point(int face, F&& f) {
+    const auto Xref = E::reference_nodes();
+    const auto& fn = E::faces[face];
+    if constexpr (E::nodes_per_face == 4) {
+      const Scalar g = 0.57735026918962576451;
+      for (Scalar s : {-g, g})
+        for (Scalar t : {-g, g}) {
+          // Bilinear map of the reference face corners (flat faces of the reference cube).
+          const Scalar Ns[4] = {(1 - s) * (1 - t) / 4, (1 + s) * (1 - t) / 4, (1 + s) * (1 + t) / 4,
+                                (1 - s) * (1 + t) / 4};
+          const Scalar dNs[4] = {-(1 - t) / 4, (1 - t) / 4, (1 + t) / 4, -(1 + t) / 4};
+          const Scalar dNt[4] = {-(1 - s) / 4, -(1 + s) / 4, (1 + s) / 4, (1 - s) / 4};
+          Vec3 xi = Vec3::Zero(), ds = Vec3::Zero(), dt = Vec3::Zero();
+          for (int k = 0; k < 4; ++k) {
+            xi += Ns[k] * Xref.col(fn[k]);
+            ds += dNs[k] * Xref.col(fn[k]);
+            dt += dNt[k] * Xref.col(fn[k]);
+          }
+          f(xi, ds, dt, 1.0);
+        }
+    } else {
+      // Strang-Fix 3-point rule on the unit triangle (area 1/2), degree 2.
+      const Scalar pts[3][2] = {{1.0 / 6, 1.0 / 6}, {2.0 / 3, 1.0 / 6}, {1.0 / 6, 2.0 / 3}};
+      const Vec3 p0 = Xref.col(fn[0]), e1 = Xref.col(fn[1]) - p0, e2 = Xref.col(fn[2]) - p0;
+      for (const auto& p : pts) f(Vec3(p0 + p[0] * e1 + p[1] * e2), e1, e2, 1.0 / 6);
+    }
+  }
+
+ private:
+  std::vector<Load> loads_;
+  std::uint32_t next_id_ = 0;
+  std::uint64_t version_ = 0;
+  Built built_;
+};
+
+}  // namespace plastifem

@@ -1,0 +1,81 @@
+#pragma once
+// State: everything a step changes, so that a step is a transaction. A step works on a trial
+// copy and commits it by a swap; any failure anywhere in a step (Newton, CG, a NaN, an inverted
+// element, an exception from a load callback or a policy) leaves the committed State bit for
+// bit as it was.
+//
+//   u, v, a    displacement, velocity, acceleration, one entry per dof of the dof map (they
+//              grow with zeros when the dof map grows: exact for enriched dofs, whose added
+//              functions are zero at the instant of the cut);
+//   t          time;
+//   load       the external force the state is balanced with (statics continue from it);
+//   warm_start the first Newton increment of the last step (the next step's CG start);
+//   plastic    the plastic policy's per-element table (empty for NoPlasticity);
+//   serial     an identity: a derived quantity computed from this state (the real-time step's
+//              linearisation) is valid while the committed state carries the same serial.
+#include <plastifem/assembly/block_matrix.hpp>
+
+#include <cstdint>
+#include <utility>
+
+namespace plastifem {
+
+/// The plastic part of a State for NoPlasticity: nothing.
+struct NoPlasticState {
+  void resize(Index) {}
+  friend bool operator==(const NoPlasticState&, const NoPlasticState&) { return true; }
+};
+
+template <class PlasticState = NoPlasticState>
+struct State {
+  Vector u, v, a;
+  Scalar t = 0;
+  bool acceleration_known = false;  ///< a is the acceleration at t (else: solved from equilibrium)
+  Vector load;
+  Vector warm_start;
+  [[no_unique_address]] PlasticState plastic;
+  std::uint64_t serial = 0;
+
+  Index num_dofs() const { return static_cast<Index>(u.size()); }
+
+  /// n dofs, all zero (a body at rest).
+  void reset(Index n) {
+    u = v = a = load = Vector::Zero(n);
+    warm_start.resize(0);
+    t = 0;
+    acceleration_known = false;
+  }
+  /// Grows to n dofs with zeros in the new entries (the dof map grew).
+  void grow(Index n) {
+    auto extend = [n](Vector& x) {
+      const Index old = static_cast<Index>(x.size());
+      if (old >= n) return;
+      x.conservativeResize(n);
+      x.tail(n - old).setZero();
+    };
+    extend(u), extend(v), extend(a), extend(load);
+    if (warm_start.size() > 0) extend(warm_start);
+  }
+  /// Assignment that reuses this state's storage (no allocation when the sizes match).
+  void assign(const State& o) {
+    u = o.u, v = o.v, a = o.a, t = o.t, acceleration_known = o.acceleration_known;
+    load = o.load, warm_start = o.warm_start, plastic = o.plastic, serial = o.serial;
+  }
+  void swap(State& o) noexcept {
+    u.swap(o.u), v.swap(o.v), a.swap(o.a), load.swap(o.load), warm_start.swap(o.warm_start);
+    std::swap(t, o.t), std::swap(acceleration_known, o.acceleration_known), std::swap(serial, o.serial);
+    using std::swap;
+    swap(plastic, o.plastic);
+  }
+  /// Every field equal, bit for bit (NaN payloads aside): what the rollback tests compare.
+  friend bool operator==(const State& x, const State& y) {
+    auto same = [](const Vector& p, const Vector& q) {
+      return p.size() == q.size() && std::equal(p.data(), p.data() + p.size(), q.data());
+    };
+    return same(x.u, y.u) && same(x.v, y.v) && same(x.a, y.a) && x.t == y.t &&
+           x.acceleration_known == y.acceleration_known && same(x.load, y.load) && same(x.warm_start, y.warm_start) &&
+           x.plastic == y.plastic && x.serial == y.serial;
+  }
+};
+
+}  // namespace plastifem

@@ -1,0 +1,73 @@
+#pragma once
+// Step control: a time step as a transaction, with automatic cutting.
+//
+// advance() makes one step of dt from the committed state: an attempt writes a trial state
+// and, if it succeeds, the two are swapped. A step
+// whose attempt fails (SolverError) is redone as two half steps, recursively, up to max_cuts
+// times (2^max_cuts sub-steps): a huge time step becomes a sequence of smaller ones, as load
+// stepping does in statics; the sub-steps advance a working copy, committed by a swap when the
+// last one succeeded. Whatever is thrown, by the solver or by a user's load curve, prescribed
+// path or policy, and at whatever sub-step, the committed state has not been touched.
+#include <plastifem/solver/settings.hpp>
+
+#include <string>
+
+namespace plastifem {
+
+/// One (sub-)step of dt from work, cut in halves on failure while depth < max_cuts.
+template <class StateT, class Attempt>
+void substep(StateT& work, StateT& trial, Scalar dt, int depth, int max_cuts, StepReport& total, Attempt& attempt) {
+  StepReport r;
+  try {
+    r = attempt(work, trial, dt);
+  } catch (const SolverError&) {
+    if (depth >= max_cuts) throw;
+    substep(work, trial, dt / 2, depth + 1, max_cuts, total, attempt);
+    substep(work, trial, dt / 2, depth + 1, max_cuts, total, attempt);
+    return;
+  }
+  work.swap(trial);
+  total.newton_iterations += r.newton_iterations;
+  total.linear_iterations += r.linear_iterations;
+  total.predictor_retries += r.predictor_retries;
+  total.residual = r.residual;
+  total.relative_residual = r.relative_residual;
+  total.convergence = r.convergence;
+  total.stagnated = total.stagnated || r.stagnated;
+  total.linear_converged = total.linear_converged && r.linear_converged;
+  total.linear_relative_residual = r.linear_relative_residual;
+  total.substeps += 1;
+}
+
+
+/// current -> current advanced by dt. `attempt(from, to, dt)` makes one step from `from`
+/// into `to` and throws SolverError on failure (leaving `from` untouched). The first attempt
+/// reads `current` directly; only a step that must be cut copies it into `work`, advances that
+/// through the sub-steps, and commits it. `current` changes only by the final swap.
+template <class StateT, class Attempt>
+StepReport advance(StateT& current, StateT& work, StateT& trial, Scalar dt, int max_cuts, Attempt&& attempt) {
+  StepReport r;
+  try {
+    r = attempt(current, trial, dt);
+  } catch (const SolverError& first_failure) {
+    if (max_cuts < 1) throw;
+    work.assign(current);
+    const Scalar t_end = current.t + dt;
+    StepReport total;
+    total.substeps = 0;
+    try {
+      substep(work, trial, dt / 2, 1, max_cuts, total, attempt);
+      substep(work, trial, dt / 2, 1, max_cuts, total, attempt);
+    } catch (const SolverError& e) {
+      fail<SolverError>("{} (also with the step cut into up to {} sub-steps: {})", first_failure.what(),
+                        std::uint64_t{1} << max_cuts, e.what());
+    }
+    work.t = t_end;  // exactly, whatever the sub-steps' round-off
+    current.swap(work);
+    return total;
+  }
+  current.swap(trial);
+  return r;
+}
+
+}  // namespace plastifem

@@ -1,0 +1,163 @@
+#pragma once
+// System: the linear-algebra side of a solver. The matrices over the current dof map (mass M,
+// tangent K, Newton matrix A, and the rest stiffness K0 when Rayleigh stiffness damping needs
+// it), which dofs are held (prescribed by a constraint, or in a row no element couples), and
+// the linear solvers. Rebuilt when the dof map changes, and only then: pattern, matrices, the
+// Dirichlet block list, the symbolic factorisation and the CG work space.
+//
+// Held dofs: their rows and columns of A become identity and their right-hand side zero, so a
+// Newton increment is zero there (u already holds the prescribed value; an uncoupled row stays
+// at zero, carrying no mass and no stiffness).
+#include <plastifem/assembly/discretization.hpp>
+#include <plastifem/solver/boundary.hpp>
+#include <plastifem/solver/settings.hpp>
+
+#include <cmath>
+#include <utility>
+
+namespace plastifem {
+
+template <FiniteElement E, class Elastic>
+class System {
+ public:
+  using Body = Discretization<E, Elastic>;
+
+  System(const SolverSettings& s) : linear_(s.linear), static_linear_(s.static_linear) {}
+
+  BlockSymmetricMatrix M, K, A;
+  BlockSymmetricMatrix K0;  ///< rest stiffness (Rayleigh stiffness damping), empty if unused
+
+  /// New pattern (the dof map changed): every matrix is rebuilt, the linear solvers forget
+  /// their analysis.
+  void rebuild(const Body& body, const SolverSettings& s, const std::vector<char>& constrained) {
+    const Assembler<E>& asm_ = body.assembler();
+    M = asm_.zero_matrix();
+    K = asm_.zero_matrix();
+    A = asm_.zero_matrix();
+    K0 = BlockSymmetricMatrix();
+    linear_.set_settings(s.linear);
+    static_linear_.set_settings(s.static_linear);
+    K_constant_valid_ = false;
+    coefficients_ = {0, 0, 0};
+    build_mass(body, s.mass);
+    set_constrained(body, constrained);
+    k0_epoch_ = ~std::uint64_t{0};
+  }
+  /// New settings (mass kind, solver settings): same pattern.
+  void set_settings(const Body& body, const SolverSettings& s) {
+    linear_.set_settings(s.linear);
+    static_linear_.set_settings(s.static_linear);
+    build_mass(body, s.mass);
+    coefficients_ = {0, 0, 0};
+  }
+  void set_threads(int threads) {
+    linear_.set_threads(threads);
+    static_linear_.set_threads(threads);
+  }
+
+  /// Which standard dofs users constrain (3 x nodes); rows no element couples are held too.
+  void set_constrained(const Body& body, const std::vector<char>& constrained) {
+    const Index n = body.num_dofs();
+    const auto& coupled = body.assembler().coupled_rows();
+    held_.assign(n, 0);
+    constrained_.assign(n, 0);
+    for (size_t d = 0; d < constrained.size(); ++d) held_[d] = constrained_[d] = constrained[d];
+    for (Index r = 0; r < n / 3; ++r)
+      if (!coupled[r]) held_[3 * r] = held_[3 * r + 1] = held_[3 * r + 2] = 1;
+    blocks_ = ConstrainedBlocks(M.pattern(), held_);
+    prescribed_dofs_.clear();
+    for (Index d = 0; d < n; ++d)
+      if (constrained_[d]) prescribed_dofs_.push_back(d);
+    coefficients_ = {0, 0, 0};  // the held rows of A change
+  }
+
+  Index num_dofs() const { return static_cast<Index>(held_.size()); }
+  /// Held: constrained by the user, or in a row no element couples.
+  bool held(Index dof) const { return held_[dof] != 0; }
+  bool constrained(Index dof) const { return constrained_[dof] != 0; }
+  bool any_constrained() const { return !prescribed_dofs_.empty(); }
+  const std::vector<Index>& constrained_dofs() const { return prescribed_dofs_; }
+
+  /// |v| over the free dofs. A plain loop in index order: zeros appended to v add nothing.
+  Scalar free_norm(const Vector& v) const {
+    Scalar s = 0;
+    const Index n = num_dofs();
+    for (Index i = 0; i < n; ++i)
+      if (!held_[i]) s += v[i] * v[i];
+    return std::sqrt(s);
+  }
+  void zero_held(Vector& v) const { blocks_.zero(v); }
+
+  /// A = cm M + K + cd K0 (same pattern: one pass over the values), then the held rows and
+  /// columns become identity.
+  void form(Scalar cm, Scalar cd) {
+    const Index nnz = A.num_values();
+    Scalar* a = A.values();
+    const Scalar* m = M.values();
+    const Scalar* k = K.values();
+    if (cd != 0) {
+      const Scalar* k0 = K0.values();
+      for (Index i = 0; i < nnz; ++i) a[i] = cm * m[i] + k[i] + cd * k0[i];
+    } else {
+      for (Index i = 0; i < nnz; ++i) a[i] = cm * m[i] + k[i];
+    }
+    blocks_.apply(A);
+  }
+  /// A = M with held rows as identity (the initial acceleration solve).
+  void form_mass() {
+    A = M;
+    blocks_.apply(A);
+    coefficients_ = {0, 0, 0};
+  }
+  /// A = K with held rows as identity (statics).
+  void form_stiffness() {
+    A = K;
+    blocks_.apply(A);
+    coefficients_ = {0, 0, 0};
+  }
+  /// For a constant tangent: whether A already holds cm M + K + cd K0 (then the direct solver
+  /// reuses its factorisation); records it as holding them after the call.
+  bool same_coefficients(Scalar cm, Scalar cd) {
+    const std::array<Scalar, 3> c{cm, cd, 1};
+    const bool same = coefficients_ == c;
+    coefficients_ = c;
+    return same;
+  }
+  void forget_coefficients() { coefficients_ = {0, 0, 0}; }
+
+  /// K of a constant-tangent model, assembled once per rest-shape epoch.
+  bool constant_tangent_current(std::uint64_t epoch) const { return K_constant_valid_ && K_epoch_ == epoch; }
+  void set_constant_tangent_current(std::uint64_t epoch) {
+    K_constant_valid_ = true;
+    K_epoch_ = epoch;
+  }
+  void invalidate_constant_tangent() { K_constant_valid_ = false; }
+
+  /// K0 for Rayleigh stiffness damping, assembled when first needed and after rest shapes change.
+  const BlockSymmetricMatrix& rest_stiffness(const Body& body) {
+    if (K0.num_values() == 0 || k0_epoch_ != body.data().epoch()) {
+      K0 = body.assembler().zero_matrix();
+      body.assemble_rest_stiffness(K0);
+      k0_epoch_ = body.data().epoch();
+    }
+    return K0;
+  }
+
+  LinearSolver& linear() { return linear_; }
+  LinearSolver& static_linear() { return static_linear_; }
+
+ private:
+  void build_mass(const Body& body, MassKind kind) {
+    assemble_mass(body.mesh(), body.assembler(), body.material().density, kind, M);
+  }
+
+  LinearSolver linear_, static_linear_;
+  std::vector<char> held_, constrained_;
+  std::vector<Index> prescribed_dofs_;
+  ConstrainedBlocks blocks_;
+  std::array<Scalar, 3> coefficients_{0, 0, 0};
+  bool K_constant_valid_ = false;
+  std::uint64_t K_epoch_ = 0, k0_epoch_ = ~std::uint64_t{0};
+};
+
+}  // namespace plastifem
