@@ -7,6 +7,10 @@
 
 int main() {
   using namespace plastifem;
+#if defined(PLASTIFEM_EXPECT_OPENMP) && !defined(_OPENMP)
+  fmt::print("consumer: the package was built with OpenMP but the exported target did not carry it\n");
+  return 1;
+#endif
   const auto mesh = bar_mesh<Hex8>(10, 3, 3);
   Solver<Hex8, Linear> solver(mesh, Material{3000, 0.45, 1.0});
   solver.fix(mesh.node_set("xmin"));

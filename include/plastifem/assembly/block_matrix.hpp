@@ -14,6 +14,7 @@
 // makes to rows of an earlier range go to its own buffer, summed after a barrier, so the
 // product is race-free, deterministic and allocation-free after the first call.
 #include <plastifem/core/error.hpp>
+#include <plastifem/core/types.hpp>
 
 #include <Eigen/SparseCore>
 #include <algorithm>
@@ -28,7 +29,6 @@
 namespace plastifem {
 
 using SparseMatrix = Eigen::SparseMatrix<Scalar, Eigen::ColMajor, int>;
-using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
 
 /// Structure of a BlockSymmetricMatrix, shared by all matrices of one mesh.
 struct BlockPattern {

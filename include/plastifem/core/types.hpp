@@ -11,5 +11,7 @@ using Index = std::int32_t;
 
 using Vec3 = Eigen::Matrix<Scalar, 3, 1>;
 using Mat3 = Eigen::Matrix<Scalar, 3, 3>;
+/// A system vector: one entry per degree of freedom.
+using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
 
 }  // namespace plastifem

@@ -25,6 +25,17 @@ struct Material {
     return Material{mu * (3 * lambda + 2 * mu) / (lambda + mu), lambda / (2 * (lambda + mu)), density}.validated();
   }
 
+  /// From Abaqus' NEO_HOOKE constants, psi = C10 (I1bar - 3) + (J - 1)^2 / D1: mu = 2 C10,
+  /// bulk modulus K = 2 / D1, lambda = K - 2 mu / 3 (the NeoHookeanAbaqus energy reproduces
+  /// Abaqus exactly; the other models see the same small-strain E and nu).
+  static Material from_abaqus(Scalar C10, Scalar D1, Scalar density) {
+    if (!(C10 > 0) || !std::isfinite(C10) || !(D1 > 0) || !std::isfinite(D1))
+      fail<InvalidArgument>("Abaqus Neo-Hookean constants need C10 > 0 and D1 > 0 (finite), got C10 = {}, D1 = {}", C10,
+                            D1);
+    const Scalar mu = 2 * C10, K = 2 / D1;
+    return from_lame(K - 2 * mu / 3, mu, density);
+  }
+
   /// Throws InvalidArgument unless E > 0, -1 < nu < 0.5 and rho > 0 (all finite).
   const Material& validated() const {
     if (!(young > 0) || !std::isfinite(young))

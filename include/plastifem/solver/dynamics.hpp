@@ -51,7 +51,7 @@ class Dynamics {
 
   /// Sizes the scratch vectors for n dofs (no allocation in the step loop afterwards).
   void resize(Index n) {
-    for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_,
+    for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_, &damping_,
                       &path_.u, &path_.v, &path_.a, &first_increment_})
       x->setZero(n);
     linearisation_serial_ = 0;
@@ -124,7 +124,7 @@ class Dynamics {
     }
   }
 
-  /// out += sign D v, D = alpha M + beta K0 (Rayleigh).
+  /// out += sign D v, D = alpha M + beta K0 (Rayleigh). `out` must not be work_ (its scratch).
   void add_damping(Parts& p, const Vector& v, Scalar sign, Vector& out) {
     if (p.settings.rayleigh_mass != 0) {
       p.system.M.multiply(v, work_, p.threads);
@@ -161,7 +161,9 @@ class Dynamics {
     path_.u = n.u;
     path_.v.setZero();
     path_.a.setZero();
-    if (p.constraints.any_motion()) p.constraints.evaluate(t1, dt, position_of(p), path_.u, &path_.v, &path_.a);
+    // Every set writes its dofs (a fixed one zeros: its dofs may have been moved by a set
+    // released since).
+    if (!p.constraints.empty()) p.constraints.evaluate(t1, dt, position_of(p), path_.u, &path_.v, &path_.a);
   }
   void set_prescribed(Parts& p, Vector& u) const {
     for (Index d : p.system.constrained_dofs()) u[d] = path_.u[d];
@@ -185,10 +187,10 @@ class Dynamics {
     r_ += f_int - f_ext_;
     Scalar damping = 0;
     if (p.settings.rayleigh_mass != 0 || p.settings.rayleigh_stiffness != 0) {
-      work_.setZero();
-      add_damping(p, v_, 1.0, work_);
-      damping = p.system.free_norm(work_);
-      r_ += work_;
+      damping_.setZero();
+      add_damping(p, v_, 1.0, damping_);
+      damping = p.system.free_norm(damping_);
+      r_ += damping_;
     }
     scale = std::max({f_ext_norm, p.system.free_norm(f_int), inertia, damping});
     return p.system.free_norm(r_);
@@ -444,7 +446,7 @@ class Dynamics {
     return rep;
   }
 
-  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, first_increment_;
+  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, damping_, first_increment_;
   PathValues path_;
   std::uint64_t linearisation_serial_ = 0;  ///< the state f_lin_ and the system's K belong to (0: none)
 };

@@ -156,7 +156,7 @@ class LinearSolver {
       return r;
     }
 #endif
-    x = ldlt_.solve(b);
+    x = ldlt_->solve(b);
     return r;
   }
 
@@ -169,14 +169,15 @@ class LinearSolver {
   }
 
   void factorise_ldlt() {
+    if (!ldlt_) ldlt_ = std::make_unique<LDLT>();
     if (!analysed_) {
-      ldlt_.analyzePattern(csc_);
+      ldlt_->analyzePattern(csc_);
       analysed_ = true;
     }
-    ldlt_.factorize(csc_);
-    const auto D = ldlt_.vectorD();
+    ldlt_->factorize(csc_);
+    const auto D = ldlt_->vectorD();
     const Scalar dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt_.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax)) singular(D.minCoeff(), dmax, "LDLT pivot");
+    if (ldlt_->info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax)) singular(D.minCoeff(), dmax, "LDLT pivot");
   }
 
   void factorise_cholmod() {
@@ -250,7 +251,8 @@ class LinearSolver {
   }
 
   LinearSolverSettings settings_;
-  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt_;
+  using LDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
+  std::unique_ptr<LDLT> ldlt_;  // created on first use (held by pointer: the solver stays movable)
 #ifdef PLASTIFEM_HAS_CHOLMOD
   std::unique_ptr<detail::CholmodLLT> cholmod_;  // created on first use (its cholmod_common)
 #endif

@@ -1,0 +1,337 @@
+// Newmark dynamics against closed forms and conservation laws:
+//  - free fall of an unconstrained body, every element, both mass kinds: the centre of mass
+//    follows g t^2 / 2 and, with the lumped mass (and lumped body loads), every node falls at
+//    exactly g;
+//  - Rayleigh damping D = alpha M + beta K0 on a single mode: the solver's history equals the
+//    scalar Newmark recurrence of the modal equation q'' + (alpha + beta w^2) q' + w^2 q = 0
+//    (to round-off), and its logarithmic decrement that of the continuous equation;
+//  - the Hex8 consistent mass of a tapered (non-parallelepiped) hex against its integral by hand;
+//  - the convergence scale includes inertia: a free spinning body converges in a few Newton
+//    iterations; a step accepted on stagnation says so;
+//  - real-time mode never commits a state the model cannot evaluate (an inverted ln J
+//    Neo-Hookean element) and reports the residual after its solve and whether CG converged;
+//  - statics continue from the current state and load.
+#include "catch.hpp"
+
+#include <plastifem/plastifem.hpp>
+
+#include <Eigen/Eigenvalues>
+#include <fmt/core.h>
+
+#include <cmath>
+#include <numbers>
+
+using namespace plastifem;
+
+namespace {
+
+const Material soft{3000, 0.45, 1.0};  // SCENES.md bar material
+
+template <FiniteElement E>
+void free_fall(MassKind kind) {
+  const Mesh<E> mesh = bar_mesh<E>(2, 1, 1);
+  SolverSettings s;
+  s.mass = kind;
+  // The formulation, not the solver tolerance, is under test: with Newton's default 1e-6 the
+  // per-step residual it accepts lets nodal accelerations drift to ~1e-5 of g (Tet10, whose
+  // consistent mass is the worst conditioned), which the test would measure instead.
+  s.newton.residual_tolerance = 1e-10;
+  s.linear.tolerance = 1e-10;
+  Solver<E, Corotational> solver(mesh, soft, s);
+  const Vec3 g(0.3, -1.0, -9.81);
+  solver.add_gravity(g);
+  const Scalar dt = 0.01;
+  const int steps = 50;
+  Scalar worst_node = 0;
+  for (int k = 0; k < steps; ++k) {
+    solver.step(dt);
+    for (Index i = 0; i < mesh.num_nodes(); ++i)
+      worst_node = std::max(worst_node, (solver.acceleration().template segment<3>(3 * i) - g).norm() / g.norm());
+  }
+  // Centre of mass: (1_d^T M u) / (1_d^T M 1_d) per direction d.
+  const SparseMatrix M = solver.mass_matrix();
+  Vec3 com;
+  for (int d = 0; d < 3; ++d) {
+    Vector one = Vector::Zero(solver.num_dofs());
+    for (Index i = 0; i < mesh.num_nodes(); ++i) one[3 * i + d] = 1;
+    com[d] = one.dot(M * solver.displacement()) / one.dot(M * one);
+  }
+  const Scalar t = solver.time();
+  const Vec3 expected = 0.5 * g * t * t;
+  const Scalar err = (com - expected).norm() / expected.norm();
+  fmt::print("free fall {:5} {:10}: centre of mass {:.2e} from g t^2/2, worst node acceleration {:.2e} from g\n",
+             E::name, kind == MassKind::Lumped ? "lumped" : "consistent", err, worst_node);
+  // M 1 g = f_ext exactly (consistent: sum_b N_b = 1; lumped: f = M_L g), so a = g solves every
+  // step's equation and Newmark integrates a constant acceleration exactly: what remains is the
+  // initial acceleration's CG (1e-13) and round-off over 50 steps. 1e-10 as the issue asks.
+  CHECK(err < 1e-10);
+  // Per node, the accepted residual (1e-10 of the whole body's force) acts on that node's mass
+  // alone: Tet10's HRZ corner masses are ~1/10 of the average and the norm spreads over ~100
+  // dofs, so a node may be off by ~1e-10 x 10 x 10 = 1e-8 (measured 1e-9).
+  if (kind == MassKind::Lumped) CHECK(worst_node < 1e-8);
+}
+
+/// u(t) = q(t) phi for the scalar Newmark recurrence of q'' + c q' + w^2 q = 0.
+struct ModalNewmark {
+  Scalar w2, c, dt, beta = 0.25, gamma = 0.5;
+  Scalar q, v, a;
+  void step() {
+    const Scalar c0 = 1 / (beta * dt * dt), c1 = gamma / (beta * dt);
+    // a1 = c0 (q1 - q - dt v) - (1/(2 beta) - 1) a, v1 = v + dt ((1 - gamma) a + gamma a1),
+    // a1 + c v1 + w2 q1 = 0, solved for q1.
+    const Scalar rhs = c0 * (q + dt * v) + (1 / (2 * beta) - 1) * a - c * (v + dt * (1 - gamma) * a) +
+                       c * c1 * (q + dt * v) + c * dt * gamma * (1 / (2 * beta) - 1) * a;
+    const Scalar q1 = rhs / (c0 + c * c1 + w2);
+    const Scalar a1 = c0 * (q1 - q - dt * v) - (1 / (2 * beta) - 1) * a;
+    v = v + dt * ((1 - gamma) * a + gamma * a1);
+    a = a1, q = q1;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("free fall: centre of mass at g t^2/2, every element and mass kind", "[dynamics][freefall]") {
+  for (MassKind kind : {MassKind::Consistent, MassKind::Lumped}) {
+    free_fall<Tet4>(kind);
+    free_fall<Tet10>(kind);
+    free_fall<Hex8>(kind);
+  }
+}
+
+TEST_CASE("Hex8 consistent mass of a tapered hex equals its integral by hand", "[dynamics][mass]") {
+  // x = xi (1 + t zeta), y = eta (1 + t zeta), z = zeta on [-1, 1]^3: det J = (1 + t zeta)^2, so
+  // m_ab = rho / 64 Ixi Ieta Izeta with Ixi = 2 + 2/3 xa xb (and eta alike) and
+  // Izeta = int (1 + z za)(1 + z zb)(1 + t z)^2 dz = 2 + 2/3 (za zb + 2 t (za + zb) + t^2) + 2/5 za zb t^2.
+  // The integrand has degree 4 in zeta: 2x2x2 Gauss (exact to degree 3) misses it by O(t^2).
+  const Scalar t = 0.4, rho = 2.5;
+  Eigen::Matrix3Xd X(3, 8);
+  for (int i = 0; i < 8; ++i) {
+    const Scalar xi = Hex8::sign[i][0], eta = Hex8::sign[i][1], zeta = Hex8::sign[i][2];
+    X.col(i) = Vec3(xi * (1 + t * zeta), eta * (1 + t * zeta), zeta);
+  }
+  const Mesh<Hex8> mesh(X, {{0, 1, 2, 3, 4, 5, 6, 7}});
+  Solver<Hex8, Linear> solver(mesh, Material{3000, 0.3, rho});
+  const SparseMatrix M = solver.mass_matrix();
+  Scalar worst = 0, total = 0;
+  for (int a = 0; a < 8; ++a)
+    for (int b = 0; b < 8; ++b) {
+      const Scalar *sa = Hex8::sign[a], *sb = Hex8::sign[b];
+      const Scalar Iz = 2 + 2.0 / 3 * (sa[2] * sb[2] + 2 * t * (sa[2] + sb[2]) + t * t) + 0.4 * sa[2] * sb[2] * t * t;
+      const Scalar m = rho / 64 * (2 + 2.0 / 3 * sa[0] * sb[0]) * (2 + 2.0 / 3 * sa[1] * sb[1]) * Iz;
+      for (int d = 0; d < 3; ++d) worst = std::max(worst, std::abs(M.coeff(3 * a + d, 3 * b + d) - m) / m);
+      total += m;
+    }
+  fmt::print("tapered Hex8 mass: max relative entry error {:.1e}\n", worst);
+  CHECK(worst < 1e-14);  // 3x3x3 Gauss is exact here: round-off only
+  CHECK(solver.mass() == Approx(total).epsilon(1e-14));
+  // V = int (1 + t z)^2 dxi deta dzeta = 4 (2 + 2 t^2 / 3)
+  CHECK(solver.volume() == Approx(4 * (2 + 2 * t * t / 3)).epsilon(1e-14));
+}
+
+TEST_CASE("Rayleigh damping on one mode: the scalar Newmark recurrence, and the continuous decay", "[dynamics][damping]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  SolverSettings s;
+  s.linear.kind = LinearSolverKind::Direct;  // exact solves: the comparison is a round-off one
+  Solver<Hex8, Linear> probe(mesh, soft, s);
+  probe.fix(mesh.node_set("xmin"));
+  // The first mode of K phi = w^2 M phi over the free dofs.
+  std::vector<Index> free;
+  for (Index d = 0; d < probe.num_dofs(); ++d)
+    if (!probe.is_constrained(d)) free.push_back(d);
+  const Eigen::MatrixXd K = Eigen::MatrixXd(probe.tangent()), Mass = Eigen::MatrixXd(probe.mass_matrix());
+  Eigen::MatrixXd Kf(free.size(), free.size()), Mf(free.size(), free.size());
+  for (size_t i = 0; i < free.size(); ++i)
+    for (size_t j = 0; j < free.size(); ++j) Kf(i, j) = K(free[i], free[j]), Mf(i, j) = Mass(free[i], free[j]);
+  Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es(Kf, Mf);
+  const Scalar w2 = es.eigenvalues()[0], w = std::sqrt(w2);
+  Vector phi = Vector::Zero(probe.num_dofs());
+  for (size_t i = 0; i < free.size(); ++i) phi[free[i]] = es.eigenvectors()(i, 0);
+  phi *= 0.01 / phi.cwiseAbs().maxCoeff();
+
+  const Scalar zeta = 0.05;  // split evenly: alpha / (2 w) = beta w / 2 = zeta / 2
+  s.rayleigh_mass = zeta * w;
+  s.rayleigh_stiffness = zeta / w;
+  const Scalar c = s.rayleigh_mass + s.rayleigh_stiffness * w2;  // = 2 zeta w
+  const Scalar dt = 0.05 / w;                                   // w dt = 0.05
+  for (int model = 0; model < 2; ++model) {
+    auto run = [&]<class Model>() {
+      Solver<Hex8, Model> solver(mesh, soft, s);
+      solver.fix(mesh.node_set("xmin"));
+      solver.set_state(phi, Vector::Zero(solver.num_dofs()));
+      ModalNewmark q{w2, c, dt};
+      q.q = 1, q.v = 0, q.a = -w2;  // a_0 from equilibrium: M a = -K u
+      Scalar recurrence = 0, previous_peak = 1, decrement = 0;
+      int peaks = 0;
+      Scalar q_prev2 = 1, q_prev = 1;
+      const int steps = static_cast<int>(std::ceil(6 * 2 * std::numbers::pi / (w * dt)));  // 6 periods
+      for (int k = 0; k < steps; ++k) {
+        solver.step(dt);
+        q.step();
+        recurrence = std::max(recurrence, (solver.displacement() - q.q * phi).norm() / phi.norm());
+        // Peaks of the modal coordinate (projected from the solver's displacement).
+        const Scalar qk = solver.displacement().dot(Mass * phi) / phi.dot(Mass * phi);
+        if (k >= 2 && q_prev > q_prev2 && q_prev > qk && q_prev > 0) {
+          if (peaks > 0) decrement += std::log(previous_peak / q_prev);
+          previous_peak = q_prev;
+          ++peaks;
+        }
+        q_prev2 = q_prev, q_prev = qk;
+      }
+      decrement /= std::max(1, peaks - 1);
+      const Scalar expected = 2 * std::numbers::pi * zeta / std::sqrt(1 - zeta * zeta);
+      fmt::print("Rayleigh, {:12}: w = {:.4f}, |u - q phi| / |phi| <= {:.1e} over {} steps, log decrement {:.5f} "
+                 "(continuous {:.5f})\n",
+                 Model::name, w, recurrence, steps, decrement, expected);
+      return std::pair{recurrence, std::abs(decrement - expected) / expected};
+    };
+    if (model == 0) {
+      const auto [rec, dec] = run.template operator()<Linear>();
+      // The discrete scheme itself, to round-off of the direct solves (~1e-15 per step).
+      CHECK(rec < 1e-10);
+      // The trapezoidal rule's damping error is O((w dt)^2) = 2.5e-3: 1% bounds it.
+      CHECK(dec < 0.01);
+    } else {
+      // Corotational at 1% strain: the same mode to second order in the amplitude (~1e-2 x the
+      // rotation of the bent bar); D uses K0, so the damping is the linear model's.
+      const auto [rec, dec] = run.template operator()<Corotational>();
+      CHECK(rec < 5e-3);
+      CHECK(dec < 0.01);
+    }
+  }
+}
+
+TEST_CASE("convergence scale: a free spinning body converges; stagnation is reported as such", "[dynamics][newton]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  SECTION("spinning, no load, no constraint") {
+    Solver<Hex8, Corotational> solver(mesh, soft);
+    const Vec3 c = mesh.nodes().rowwise().mean();
+    Vector v(solver.num_dofs());
+    for (Index i = 0; i < mesh.num_nodes(); ++i) v.segment<3>(3 * i) = Vec3(0, 0, 2).cross(mesh.node(i) - c);
+    solver.set_state(Vector::Zero(solver.num_dofs()), v);
+    const Scalar E0 = solver.kinetic_energy();
+    int most = 0;
+    for (int k = 0; k < 50; ++k) {
+      const StepReport r = solver.step(0.01);
+      most = std::max(most, r.newton_iterations);
+      CHECK(r.convergence == Convergence::Converged);
+    }
+    const Scalar E1 = solver.kinetic_energy() + solver.strain_energy();
+    fmt::print("spinning bar: at most {} Newton iterations per step, energy {:.6g} -> {:.6g}\n", most, E0, E1);
+    // The centripetal inertia sets the scale: Newton converges like any step (2-3 iterations).
+    CHECK(most <= 4);
+    // Corotational is conservative; the average-acceleration rule conserves energy exactly for
+    // linear problems only, and here errs by O((omega dt)^2) per unit of rotation: measured
+    // 3.6e-4 after 1 rad. A solver that did not converge would drift by far more.
+    CHECK(std::abs(E1 - E0) <= 1e-3 * E0);
+  }
+  SECTION("an unreachable tolerance: the step ends on stagnation and says so") {
+    SolverSettings s;
+    s.newton.residual_tolerance = 1e-20;
+    Solver<Hex8, Corotational> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(Vec3(0, 0, -9.81));
+    const StepReport r = solver.step(0.01);
+    CHECK(r.stagnated);
+    CHECK(r.convergence == Convergence::Stagnated);
+    CHECK(r.relative_residual <= 1e-10);
+  }
+}
+
+TEST_CASE("real time: an inverting load never commits an invalid state; residual after the solve; CG cap",
+          "[dynamics][realtime]") {
+  const Mesh<Tet4> mesh = bar_mesh<Tet4>(4, 1, 1);
+  SolverSettings s;
+  s.newmark.mode = NewmarkMode::RealTime;
+  auto valid = [](const auto& solver) { return solver.internal_force().allFinite() && std::isfinite(solver.strain_energy()); };
+  SECTION("no cutting: the step fails and the state is bit for bit the same") {
+    s.max_step_cuts = 0;
+    Solver<Tet4, NeoHookean> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.step(0.01);
+    // A push on the free end that compresses the bar through itself within one step.
+    solver.add_nodal_force(mesh.node_set("xmax"), Vec3(-3e5, 0, 0));
+    const auto before = solver.state();
+    CHECK_THROWS_AS(solver.step(0.01), SolverError);
+    CHECK(solver.state() == before);
+    CHECK(valid(solver));
+  }
+  SECTION("with cutting: whatever happens, a committed state is valid") {
+    Solver<Tet4, NeoHookean> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_nodal_force(mesh.node_set("xmax"), Vec3(-3e4, 0, 0));
+    int failed = 0, substeps = 0;
+    for (int k = 0; k < 20; ++k) {
+      try {
+        substeps += solver.step(0.01).substeps;
+      } catch (const SolverError&) {
+        ++failed;
+      }
+      REQUIRE(valid(solver));
+    }
+    fmt::print("real time under an inverting load: {} failed steps, {} sub-steps in the others\n", failed, substeps);
+    CHECK((failed > 0 || substeps > 20));  // it did have to cut or fail: the load does invert
+  }
+  SECTION("the report: the residual after the solve, CG convergence, a deliberate cap") {
+    Solver<Tet4, Corotational> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(Vec3(0, 0, -9.81));
+    StepReport r = solver.step(0.01);
+    CHECK(r.convergence == Convergence::OneSolve);
+    CHECK(r.linear_converged);
+    CHECK(r.residual > 0);             // the nonlinear residual at the new state, not zero
+    CHECK(r.relative_residual < 1e-2);  // a linearisation error of one small step
+    SolverSettings capped = s;
+    capped.linear.max_iterations = 1;
+    solver.set_settings(capped);
+    const auto before = solver.state();
+    CHECK_THROWS_AS(solver.step(0.01), SolverError);  // CG stopped at its cap: a failure ...
+    CHECK(solver.state() == before);
+    capped.linear.accept_capped = true;  // ... unless the cap is meant
+    solver.set_settings(capped);
+    r = solver.step(0.01);
+    CHECK_FALSE(r.linear_converged);
+    CHECK(r.linear_relative_residual > 0);
+  }
+}
+
+TEST_CASE("statics continue from the current state and load", "[statics]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  SolverSettings s;
+  s.newton.residual_tolerance = 1e-10;
+  Solver<Hex8, Corotational> a(mesh, soft, s), b(mesh, soft, s);
+  for (auto* x : {&a, &b}) {
+    x->fix(mesh.node_set("xmin"));
+    x->add_gravity(Vec3(0, 0, -9.81));
+  }
+  a.solve_static(4);
+  // Solved again with nothing changed: already in equilibrium, no Newton iteration.
+  CHECK(a.solve_static(1).newton_iterations == 0);
+  // A load added afterwards is ramped from the current one (gravity), not from zero: one
+  // increment from the gravity state equals b's solve of both from rest.
+  a.add_nodal_forces(mesh.node_set("xmax"), std::vector<Vec3>(mesh.node_set("xmax").size(), Vec3(0, 2, 0)));
+  a.solve_static(1);
+  b.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 2, 0));
+  b.solve_static(4);
+  const Scalar diff = (a.displacement() - b.displacement()).norm() / b.displacement().norm();
+  INFO("continued vs from rest: " << diff);
+  CHECK(diff < 1e-8);  // both at equilibrium to 1e-10 of the force scale
+}
+
+TEST_CASE("Material::from_abaqus and add_nodal_forces", "[material][loads]") {
+  // Abaqus NEO_HOOKE C10 = 833, D1 = 1e-5 (seed 000, Fig. 7): mu = 1666, K = 2e5.
+  const Material m = Material::from_abaqus(833, 1e-5, 1.0);
+  CHECK(m.mu() == Approx(1666).epsilon(1e-12));
+  CHECK(m.lambda() + 2 * m.mu() / 3 == Approx(2e5).epsilon(1e-12));
+  CHECK_THROWS_AS(Material::from_abaqus(-1, 1e-5, 1), InvalidArgument);
+  CHECK_THROWS_AS(Material::from_abaqus(833, 0, 1), InvalidArgument);
+  const Mesh<Tet4> mesh = bar_mesh<Tet4>(2, 1, 1);
+  Solver<Tet4, Linear> s(mesh, soft);
+  const std::vector<Index> nodes{1, 3};
+  const std::vector<Vec3> forces{Vec3(1, 2, 3), Vec3(-4, 5, -6)};
+  s.add_nodal_forces(nodes, forces);
+  Vector u = Vector::Zero(s.num_dofs());
+  u[3 * 1 + 0] = 1, u[3 * 3 + 2] = 1;
+  s.set_state(u, Vector::Zero(s.num_dofs()));
+  CHECK(s.external_work_potential() == 1 - 6);  // f . u
+  CHECK_THROWS_AS(s.add_nodal_forces(nodes, std::vector<Vec3>{Vec3(1, 0, 0)}), InvalidArgument);
+}

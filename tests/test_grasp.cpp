@@ -1,0 +1,261 @@
+// Prescribed motion in dynamics: a grasper that pulls tissue, holds, and lets go.
+//
+// Facts checked:
+//  - the velocity and acceleration at constrained dofs are the prescribed path's derivatives:
+//    exactly 0 while a grasp holds still, the ramp's slope (and zero acceleration) on a ramp,
+//    and the analytic derivatives of a sine (to the one-sided differences' truncation,
+//    (h omega)^2 ~ 4e-7, when only the displacement is given; exactly when they are given);
+//  - during a held grasp with damping, the reaction converges to the static reaction of the
+//    same held displacement (an independent static solve);
+//  - after release the nodes move on freely from their current velocity and the total energy
+//    of the damped system does not grow;
+//  - constraint sets are handles: released, replaced, and an earlier set on the same dofs
+//    applies again when a later one is released.
+#include "catch.hpp"
+
+#include <plastifem/plastifem.hpp>
+
+#include <fmt/core.h>
+
+#include <cmath>
+#include <numbers>
+
+using namespace plastifem;
+
+namespace {
+
+const Material soft{3000, 0.45, 1.0};  // SCENES.md bar material
+
+/// The four nodes at the centre of the bar's free end face (x = nx, y and z in [1, ny - 1]).
+template <FiniteElement E>
+std::vector<Index> end_centre_nodes(const Mesh<E>& mesh, Scalar nx, Scalar ny, Scalar nz) {
+  return select_nodes(mesh, [&](const Vec3& p) {
+    return std::abs(p.x() - nx) < 1e-9 && p.y() > 0.9 && p.y() < ny - 0.9 && p.z() > 0.9 && p.z() < nz - 0.9 &&
+           std::abs(p.y() - std::round(p.y())) < 1e-9 && std::abs(p.z() - std::round(p.z())) < 1e-9;
+  });
+}
+
+Vec3 sum_at(const Vector& f, const std::vector<Index>& nodes) {
+  Vec3 s = Vec3::Zero();
+  for (Index i : nodes) s += f.template segment<3>(3 * i);
+  return s;
+}
+
+/// Grasp, stretch (0 -> 0.5 in z over 1 s), hold, release: bar90 with gravity and mass
+/// damping, the SCENES bar otherwise.
+template <FiniteElement E>
+void grasp_stretch_hold_release(MassKind mass) {
+  const Mesh<E> mesh = bar_mesh<E>(10, 3, 3);
+  const std::vector<Index> grasped = end_centre_nodes(mesh, 10, 3, 3);
+  REQUIRE(grasped.size() == 4);
+  SolverSettings s;
+  s.mass = mass;
+  // Rayleigh damping: mass alpha = 5 (with both ends held, bar90's lowest mode, fixed-fixed
+  // beam omega_1 ~ 10 rad/s from beam theory, decays like exp(-alpha t / 2): a 5 s hold leaves
+  // 4e-6 of the motion the ramp's stop excited) and stiffness beta = 2e-3 on K0 (damping ratio
+  // beta omega / 2 ~ 0.5 at omega ~ 500 rad/s: the stiff modes, which the trapezoidal rule
+  // does not dissipate and mass damping barely reaches at omega dt >> 1).
+  s.rayleigh_mass = 5;
+  s.rayleigh_stiffness = 2e-3;
+  Solver<E, Corotational> solver(mesh, soft, s);
+  solver.fix(mesh.node_set("xmin"));
+  solver.add_gravity(Vec3(0, 0, -9.81));
+  const Scalar dt = 0.01;
+  const ConstraintHandle grasp = solver.grasp(grasped, [](Scalar t) { return Vec3(0, 0, 0.5 * std::min(t, 1.0)); });
+  std::vector<Index> grasped_dofs, free_dofs;
+  for (Index i : grasped)
+    for (int d = 0; d < 3; ++d) grasped_dofs.push_back(3 * i + d);
+  for (Index d = 0; d < solver.num_dofs(); ++d)
+    if (!solver.is_constrained(d)) free_dofs.push_back(d);
+
+  // Ramp: v = (0, 0, 0.5) and a = 0 at every grasped dof after every step.
+  Scalar ramp_v_error = 0, ramp_a = 0, free_a_peak = 0;
+  for (int k = 0; k < 100; ++k) {
+    solver.step(dt);
+    for (Index i : grasped) {
+      ramp_v_error = std::max(ramp_v_error, (solver.velocity().template segment<3>(3 * i) - Vec3(0, 0, 0.5)).norm());
+      ramp_a = std::max(ramp_a, solver.acceleration().template segment<3>(3 * i).norm());
+    }
+    for (Index d : free_dofs) free_a_peak = std::max(free_a_peak, std::abs(solver.acceleration()[d]));
+  }
+  // Hold for 5 s: v = a = 0 exactly at the grasped dofs (the path is constant, its
+  // differences are exact zeros); the reaction settles.
+  Scalar hold_va = 0;
+  std::vector<Vec3> reaction;
+  for (int k = 0; k < 500; ++k) {
+    solver.step(dt);
+    for (Index d : grasped_dofs) hold_va = std::max({hold_va, std::abs(solver.velocity()[d]), std::abs(solver.acceleration()[d])});
+    for (Index d : free_dofs) free_a_peak = std::max(free_a_peak, std::abs(solver.acceleration()[d]));
+    reaction.push_back(sum_at(solver.reaction_forces(), grasped));
+  }
+  // The same held displacement in statics: the grasped nodes fixed where the grasp holds them.
+  Solver<E, Corotational> statics(mesh, soft, s);
+  statics.fix(mesh.node_set("xmin"));
+  statics.add_gravity(Vec3(0, 0, -9.81));
+  std::vector<Vec3> held;
+  for (Index i : grasped) held.push_back(solver.displacement(i));
+  statics.prescribe(grasped, [&](Scalar, const Vec3& X) {
+    for (size_t k = 0; k < grasped.size(); ++k)
+      if ((mesh.node(grasped[k]) - X).norm() == 0) return held[k];
+    return Vec3(Vec3::Zero());
+  });
+  statics.solve_static(4);
+  const Vec3 R_static = sum_at(statics.reaction_forces(), grasped);
+  const Vec3 R_end = reaction.back();
+  // Smoothness: the reaction history during the hold has no step-to-step oscillation (it
+  // alternated by +-12,900 around ~61 when v and a came from Newmark-differencing the path).
+  Scalar jump = 0;
+  for (size_t k = 1; k < reaction.size(); ++k) jump = std::max(jump, (reaction[k] - reaction[k - 1]).norm());
+
+  // Release: the nodes move on from their current velocity (zero after the hold); the total
+  // energy (kinetic + strain - work of gravity) of the damped system does not grow.
+  auto energy = [&] { return solver.kinetic_energy() + solver.strain_energy() - solver.external_work_potential(); };
+  solver.release(grasp);
+  const Scalar E0 = energy();
+  Scalar E_max = E0, moved = 0;
+  const Vector u_release = solver.displacement();
+  for (int k = 0; k < 100; ++k) {
+    solver.step(dt);
+    E_max = std::max(E_max, energy());
+  }
+  for (Index i : grasped) moved = std::max(moved, (solver.displacement(i) - u_release.template segment<3>(3 * i)).norm());
+
+  fmt::print("grasp {:5} {:10}: ramp |v - 0.5| {:.1e}, |a| {:.1e}; hold max |v|,|a| {:.1e}; free |a| peak {:.3g}; "
+             "reaction end {:.4f} vs static {:.4f} (rel {:.1e}), max step jump {:.3g}; release: moved {:.3f}, "
+             "energy {:.6g} -> max {:.6g}\n",
+             E::name, mass == MassKind::Lumped ? "lumped" : "consistent", ramp_v_error, ramp_a, hold_va, free_a_peak,
+             R_end.z(), R_static.z(), (R_end - R_static).norm() / R_static.norm(), jump, moved, E0, E_max);
+  // The ramp's slope: one-sided differences are exact for a linear path up to the round-off
+  // of the path values (~eps |g| / h = 1e-12 at h = 1e-4); the kink at t = 1 s falls on a step.
+  CHECK(ramp_v_error < 1e-9);
+  CHECK(ramp_a < 1e-5);  // second differences: ~12 eps |g| / h^2 = 6e-8; 1e-5 with room
+  CHECK(hold_va == 0);
+  // Reaction within 1e-5 of the static one (the issue asks 1e-3): what the damping has not yet
+  // removed (4e-6 of the motion) plus the Newton tolerance of both solves (1e-6 relative);
+  // measured 3e-7 to 4e-7.
+  CHECK((R_end - R_static).norm() <= 1e-5 * R_static.norm());
+  // No alternation: consecutive reactions differ by a small fraction of the reaction.
+  CHECK(jump < 0.2 * R_static.norm());
+  // Free nodes: accelerations of the physical motion, not the 1e4-scale echo of differencing.
+  CHECK(free_a_peak < 500);
+  CHECK(moved > 0.05);  // released: the pulled end falls back
+  CHECK(E_max <= E0 + 1e-6 * std::abs(E0));
+}
+
+}  // namespace
+
+TEST_CASE("prescribed path derivatives: ramp, hold, sine; given derivatives are used exactly", "[grasp][path]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  const std::vector<Index> end = mesh.node_set("xmax");
+  const Scalar A = 0.05, w = 2 * std::numbers::pi;
+  SECTION("a sine given by its displacement only: one-sided differences of second order") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    s.prescribe(end, [&](Scalar t, const Vec3&) { return Vec3(0, 0, A * std::sin(w * t)); });
+    Scalar ev = 0, ea = 0;
+    for (int k = 0; k < 60; ++k) {
+      s.step(0.01);
+      const Scalar t = s.time();
+      for (Index i : end) {
+        ev = std::max(ev, std::abs(s.velocity()[3 * i + 2] - A * w * std::cos(w * t)) / (A * w));
+        ea = std::max(ea, std::abs(s.acceleration()[3 * i + 2] + A * w * w * std::sin(w * t)) / (A * w * w));
+      }
+    }
+    fmt::print("sine path, differences: max relative error v {:.2e}, a {:.2e}\n", ev, ea);
+    // Truncation (h omega)^2 / 3 = 1.3e-7 for v and (h omega)^2 11/12 = 3.6e-7 for a at
+    // h = 1e-4; round-off 12 eps |g| / (h^2 A omega^2) ~ 7e-8. 2e-6 bounds both.
+    CHECK(ev < 2e-6);
+    CHECK(ea < 2e-6);
+  }
+  SECTION("with the derivatives given, they are the state's, bit for bit") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    s.prescribe(end, PrescribedMotion{[&](Scalar t, const Vec3&) { return Vec3(0, 0, A * std::sin(w * t)); },
+                                      [&](Scalar t, const Vec3&) { return Vec3(0, 0, A * w * std::cos(w * t)); },
+                                      [&](Scalar t, const Vec3&) { return Vec3(0, 0, -A * w * w * std::sin(w * t)); }});
+    for (int k = 0; k < 20; ++k) {
+      s.step(0.01);
+      const Scalar t = s.time();
+      for (Index i : end) {
+        REQUIRE(s.velocity()[3 * i + 2] == A * w * std::cos(w * t));
+        REQUIRE(s.acceleration()[3 * i + 2] == -A * w * w * std::sin(w * t));
+        REQUIRE(s.displacement()[3 * i + 2] == A * std::sin(w * t));
+      }
+    }
+  }
+  SECTION("a velocity alone: the acceleration is its difference") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    s.prescribe(end, PrescribedMotion{[&](Scalar t, const Vec3&) { return Vec3(0, 0, A * std::sin(w * t)); },
+                                      [&](Scalar t, const Vec3&) { return Vec3(0, 0, A * w * std::cos(w * t)); },
+                                      {}});
+    s.step(0.01);
+    const Scalar t = s.time();
+    CHECK(s.acceleration()[3 * end[0] + 2] == Approx(-A * w * w * std::sin(w * t)).epsilon(1e-6));
+  }
+  SECTION("a motion with a velocity but no displacement is refused") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    CHECK_THROWS_AS(s.prescribe(end, PrescribedMotion{{}, [](Scalar, const Vec3&) { return Vec3(1, 0, 0); }, {}}),
+                    InvalidArgument);
+  }
+}
+
+TEST_CASE("grasp, stretch, hold and release: bar90 Hex8 and Tet10, consistent and lumped mass", "[grasp][dynamics]") {
+  grasp_stretch_hold_release<Hex8>(MassKind::Consistent);
+  grasp_stretch_hold_release<Hex8>(MassKind::Lumped);
+  grasp_stretch_hold_release<Tet10>(MassKind::Consistent);
+  grasp_stretch_hold_release<Tet10>(MassKind::Lumped);
+}
+
+TEST_CASE("constraint handles: release mid-ramp keeps the velocity, replace changes the path, sets stack",
+          "[grasp][handles]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  const std::vector<Index> end = mesh.node_set("xmax");
+  SECTION("released mid-ramp: the nodes keep moving at the ramp's speed") {
+    Solver<Hex8, Linear> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    const auto h = s.prescribe(end, [](Scalar t, const Vec3&) { return Vec3(0, 0, 0.2 * t); });
+    for (int k = 0; k < 10; ++k) s.step(0.01);
+    s.release(h);
+    const Scalar z0 = s.displacement(end[0]).z();
+    s.step(0.001);  // a short step: the nodes move on at ~0.2 (their velocity), not back to rest
+    const Scalar v = (s.displacement(end[0]).z() - z0) / 0.001;
+    INFO("velocity over the first step after release: " << v);
+    // It moves on at the ramp's 0.2, slowed only by the elastic pull over 1 ms (measured
+    // 0.195); a release that snapped back or stayed clamped would give <= 0.
+    CHECK(v == Approx(0.2).epsilon(0.05));
+    CHECK_FALSE(s.is_constrained(3 * end[0] + 2));
+    CHECK_THROWS_AS(s.release(h), InvalidArgument);  // a handle names its set once
+  }
+  SECTION("replace: the set follows a new path from the next step on") {
+    Solver<Hex8, Linear> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    const auto h = s.prescribe(end, [](Scalar, const Vec3&) { return Vec3(0, 0, 0.1); });
+    s.step(0.01);
+    s.replace(h, PrescribedMotion{[](Scalar, const Vec3&) { return Vec3(0, 0.05, 0.1); }, {}, {}});
+    s.step(0.01);
+    CHECK(s.displacement(end[0]) == Vec3(0, 0.05, 0.1));
+  }
+  SECTION("a later set wins on shared dofs; releasing it brings back the earlier one") {
+    Solver<Hex8, Linear> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    s.fix(end);
+    const auto lift = s.prescribe(end, [](Scalar, const Vec3&) { return Vec3(0, 0, 0.1); });
+    s.step(0.01);
+    CHECK(s.displacement(end[0]).z() == 0.1);
+    s.release(lift);
+    s.step(0.01);
+    CHECK(s.displacement(end[0]).z() == 0);  // fixed again by the first set
+    CHECK(s.is_constrained(3 * end[0] + 2));
+  }
+  SECTION("a grasp starts where the nodes are") {
+    Solver<Hex8, Corotational> s(mesh, soft);
+    s.fix(mesh.node_set("xmin"));
+    s.add_gravity(Vec3(0, 0, -9.81));
+    for (int k = 0; k < 20; ++k) s.step(0.01);
+    const Vec3 before = s.displacement(end[0]);
+    s.grasp(end, [](Scalar t) { return Vec3(t, 0, 0); });
+    s.step(0.01);
+    CHECK((s.displacement(end[0]) - before - Vec3(0.01, 0, 0)).norm() < 1e-12);
+  }
+}
