@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <random>
+#include <set>
 #include <sstream>
 #include <tuple>
 
@@ -652,6 +653,79 @@ TEST_CASE("legacy vtk reader errors name the file and line or cell", "[io][vtk]"
     CHECK(contains(msg("head.vtk", "# not vtk\n"), "io_head.vtk:1: expected '# vtk DataFile Version x.x'"));
     CHECK(contains(msg("poly.vtk", "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\n"),
                    "io_poly.vtk:4: expected DATASET UNSTRUCTURED_GRID, got 'POLYDATA'"));
+  }
+}
+
+// ============================================================= nodes no element uses ========
+
+TEST_CASE("readers can drop the nodes no element uses (Gmsh geometry points)", "[io][gmsh]") {
+  // The unit cube as bar_mesh<Tet4>(1, 1, 1), with two geometry points (tags 1 and 6): one is the
+  // point group "probe", the other in no group.
+  const std::string file = data_path("tet4_geometry_points_v22.msh");
+  const Mesh<Tet4> bar = bar_mesh<Tet4>(1, 1, 1);
+  const Mesh<Tet4> kept = io::read_gmsh<Tet4>(file);  // default: every node of the file
+  REQUIRE(kept.num_nodes() == 10);
+  CHECK(kept.report().unused_nodes == std::vector<Index>{0, 5});
+  CHECK(kept.node_set("probe") == std::vector<Index>{0});
+  CHECK(kept.node_set("fixed") == std::vector<Index>{1, 3, 6, 8});
+
+  io::ReadOptions options;
+  options.drop_unused_nodes = true;
+  const Mesh<Tet4> mesh = io::read_gmsh<Tet4>(file, options);
+  REQUIRE(mesh.num_nodes() == 8);
+  CHECK(mesh.report().unused_nodes.empty());
+  CHECK(mesh.nodes() == bar.nodes());
+  CHECK(mesh.elements() == bar.elements());
+  CHECK(mesh.node_set("probe").empty());  // its only node was a geometry point
+  CHECK(mesh.node_set("fixed") == bar.node_set("xmin"));
+  CHECK(mesh.node_set("body") == std::vector<Index>{0, 1, 2, 3, 4, 5, 6, 7});
+  CHECK(mesh.face_sets() == kept.face_sets());  // faces name elements, which keep their indices
+  CHECK(same_faces(mesh.face_set("fixed"), select_boundary_faces(mesh, at_x0)));
+
+  // The free function gives the same mesh, and the map from old to new indices.
+  std::vector<Index> old_to_new;
+  const Mesh<Tet4> compact = drop_unused_nodes(kept, &old_to_new);
+  CHECK(old_to_new == std::vector<Index>{-1, 0, 1, 2, 3, -1, 4, 5, 6, 7});
+  CHECK(compact.nodes() == mesh.nodes());
+  CHECK(compact.elements() == mesh.elements());
+  CHECK(compact.node_sets() == mesh.node_sets());
+  // Nothing to drop: the same mesh, the identity map.
+  const Mesh<Tet4> same = drop_unused_nodes(bar, &old_to_new);
+  CHECK(same.nodes() == bar.nodes());
+  CHECK(same.node_sets() == bar.node_sets());
+  CHECK(old_to_new == std::vector<Index>{0, 1, 2, 3, 4, 5, 6, 7});
+}
+
+TEST_CASE("vtu and legacy vtk readers drop unused nodes with their point data columns", "[io][vtu][vtk]") {
+  io::ReadOptions drop;
+  drop.drop_unused_nodes = true;
+  // One tetrahedron and an unused point (index 2) with its own field values.
+  const std::string vtk = "# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\n"
+                          "POINTS 5 double\n0 0 0 1 0 0 9 9 9 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 3 4\nCELL_TYPES 1\n10\n"
+                          "POINT_DATA 5\nSCALARS t double\n0 1 2 3 4\nVECTORS u double\n0 0 0 1 1 1 2 2 2 3 3 3 4 4 4\n"
+                          "CELL_DATA 1\nSCALARS c double\n7\n";
+  const auto all = io::read_vtk_legacy<Tet4>(write_text("unused.vtk", vtk));
+  CHECK(all.mesh.report().unused_nodes == std::vector<Index>{2});
+  const auto d = io::read_vtk_legacy<Tet4>(write_text("unused.vtk", vtk), drop);
+  REQUIRE(d.mesh.num_nodes() == 4);
+  CHECK(d.mesh.element(0) == Mesh<Tet4>::Connectivity{0, 1, 2, 3});
+  CHECK(d.mesh.node(2) == Vec3(0, 1, 0));
+  CHECK(bit_equal(d.point_data.at("t"), Eigen::RowVector4d(0, 1, 3, 4)));
+  CHECK(bit_equal(d.point_data.at("u"), (Eigen::Matrix<double, 3, 4>() << 0, 1, 3, 4, 0, 1, 3, 4, 0, 1, 3, 4).finished()));
+  CHECK(bit_equal(d.cell_data.at("c"), Eigen::Matrix<double, 1, 1>(7)));
+
+  // The same through a .vtu in each encoding.
+  for (io::Encoding enc : all_encodings) {
+    INFO("encoding " << encoding_name(enc));
+    const std::string path = out_path(fmt::format("unused_{}.vtu", encoding_name(enc)));
+    io::write_vtu(path, all.mesh, io::to_fields(all.point_data), io::to_fields(all.cell_data), with_encoding(enc));
+    CHECK(io::read_vtu<Tet4>(path).mesh.num_nodes() == 5);
+    const auto v = io::read_vtu<Tet4>(path, drop);
+    CHECK(bit_equal(v.mesh.nodes(), d.mesh.nodes()));
+    CHECK(v.mesh.elements() == d.mesh.elements());
+    CHECK(bit_equal(v.point_data.at("t"), d.point_data.at("t")));
+    CHECK(bit_equal(v.point_data.at("u"), d.point_data.at("u")));
+    CHECK(bit_equal(v.cell_data.at("c"), d.cell_data.at("c")));
   }
 }
 

@@ -179,4 +179,38 @@ class Mesh {
   MeshReport report_;
 };
 
+/// The mesh without the nodes no element refers to (report().unused_nodes: a CAD file's geometry
+/// points, say). The other nodes keep their order and are renumbered 0..n-1; connectivity and node
+/// sets follow (a set loses its dropped nodes and is kept even if that empties it); face sets are
+/// unchanged, as they name elements. If `old_to_new` is given, it receives the new index of every
+/// old node, -1 for a dropped one. A mesh without unused nodes is returned as it is.
+template <FiniteElement E>
+Mesh<E> drop_unused_nodes(const Mesh<E>& mesh, std::vector<Index>* old_to_new = nullptr) {
+  std::vector<Index> map(static_cast<size_t>(mesh.num_nodes()), 0);
+  for (Index i : mesh.report().unused_nodes) map[static_cast<size_t>(i)] = -1;
+  Index n = 0;
+  for (Index& m : map)
+    if (m == 0) m = n++;
+  if (n == mesh.num_nodes()) {
+    if (old_to_new) *old_to_new = std::move(map);
+    return mesh;
+  }
+  typename Mesh<E>::Nodes nodes(3, n);
+  for (Index i = 0; i < mesh.num_nodes(); ++i)
+    if (map[static_cast<size_t>(i)] >= 0) nodes.col(map[static_cast<size_t>(i)]) = mesh.nodes().col(i);
+  std::vector<typename Mesh<E>::Connectivity> elements = mesh.elements();
+  for (auto& c : elements)
+    for (Index& i : c) i = map[static_cast<size_t>(i)];
+  Mesh<E> out(std::move(nodes), std::move(elements));
+  for (const auto& [name, ids] : mesh.node_sets()) {
+    std::vector<Index> kept;
+    for (Index i : ids)
+      if (map[static_cast<size_t>(i)] >= 0) kept.push_back(map[static_cast<size_t>(i)]);
+    out.add_node_set(name, std::move(kept));
+  }
+  for (const auto& [name, faces] : mesh.face_sets()) out.add_face_set(name, faces);
+  if (old_to_new) *old_to_new = std::move(map);
+  return out;
+}
+
 }  // namespace plastifem

@@ -6,8 +6,8 @@
 //   - $MeshFormat (version 2.2 or 4.1, ASCII only), $PhysicalNames, $Entities (4.1), $Nodes,
 //     $Elements; any other section ($Periodic, $NodeData, ...) is skipped.
 //   - Nodes: renumbered 0..n-1 in the order of the file, whatever their tags (4.1 tags may be
-//     sparse and spread over entity blocks). Nodes no volume element uses are KEPT, so that every
-//     node of the file has an index; the mesh lists them in report().unused_nodes.
+//     sparse and spread over entity blocks). Nodes no volume element uses are KEPT by default, so
+//     that every node of the file has an index; the mesh lists them in report().unused_nodes.
 //   - Volume elements: all must be of E's type (Tet4: Gmsh type 4, Tet10: 11, Hex8: 5); another
 //     volume type is an error, lower-dimensional elements are only used for physical groups.
 //     Gmsh's Tet10 numbers its last two mid-edge nodes the other way round from VTK (Gmsh node 8
@@ -17,6 +17,8 @@
 //     "physical_<tag>". Groups of different dimensions with the same name share one set. A 2D
 //     group (triangles, quadrangles) also becomes a face set: each surface element is matched by
 //     its corner nodes to a boundary face of the volume mesh; no match is an error.
+//   - ReadOptions{.drop_unused_nodes = true} removes the nodes no volume element uses (geometry
+//     points, nodes of surface elements only); node sets lose them.
 // Malformed input throws IoError "file:line: what was expected"; the mesh constructor's
 // MeshError (inverted element, ...) propagates unchanged.
 #include <plastifem/mesh/io/vtu.hpp>  // detail::TextScanner, parse_number
@@ -370,12 +372,12 @@ class GmshParser {
 
 }  // namespace detail
 
-/// Reads a Gmsh ASCII .msh file (format 2.2 or 4.1) of E volume elements, with its physical
-/// groups as node sets and (2D groups) face sets. See the top of this file for the rules.
+/// read_gmsh of a file's contents held in memory; `file_name` is the name error messages give
+/// ("file_name:line: what was expected").
 template <FiniteElement E>
-Mesh<E> read_gmsh(const std::filesystem::path& file) {
-  const std::string path = file.string();
-  detail::GmshParser parser(path, detail::read_file(file));
+Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<string>",
+                         const ReadOptions& options = {}) {
+  detail::GmshParser parser(file_name, std::move(text));
   const detail::GmshFile f = parser.parse();
   using Element = detail::GmshFile::Element;
   constexpr int want = detail::gmsh_type_of<E>();
@@ -467,7 +469,15 @@ Mesh<E> read_gmsh(const std::filesystem::path& file) {
     fs.erase(std::unique(fs.begin(), fs.end()), fs.end());
     mesh.add_face_set(name, std::move(fs));
   }
+  if (options.drop_unused_nodes) return drop_unused_nodes(mesh);
   return mesh;
+}
+
+/// Reads a Gmsh ASCII .msh file (format 2.2 or 4.1) of E volume elements, with its physical
+/// groups as node sets and (2D groups) face sets. See the top of this file for the rules.
+template <FiniteElement E>
+Mesh<E> read_gmsh(const std::filesystem::path& file, const ReadOptions& options = {}) {
+  return read_gmsh_string<E>(detail::read_file(file), file.string(), options);
 }
 
 }  // namespace plastifem::io

@@ -250,11 +250,23 @@ class LegacyVtkParser {
 
 }  // namespace detail
 
-/// Reads an ASCII legacy .vtk UNSTRUCTURED_GRID of E cells with its point and cell data.
+/// read_vtk_legacy of a file's contents held in memory; `file_name` is the name error
+/// messages give ("file_name:line: what was expected").
 template <FiniteElement E>
-MeshData<E> read_vtk_legacy(const std::filesystem::path& file) {
-  detail::LegacyVtkParser parser(file.string(), detail::read_file(file));
-  return parser.parse<E>();
+MeshData<E> read_vtk_legacy_string(std::string text, const std::string& file_name = "<string>",
+                                   const ReadOptions& options = {}) {
+  detail::LegacyVtkParser parser(file_name, std::move(text));
+  MeshData<E> data = parser.parse<E>();
+  if (options.drop_unused_nodes) detail::drop_unused_points(data);
+  return data;
+}
+
+/// Reads an ASCII legacy .vtk UNSTRUCTURED_GRID of E cells with its point and cell data. Throws
+/// IoError on malformed input ("file:line: what was expected") or a cell of another type; the
+/// mesh constructor's MeshError (inverted element, ...) propagates.
+template <FiniteElement E>
+MeshData<E> read_vtk_legacy(const std::filesystem::path& file, const ReadOptions& options = {}) {
+  return read_vtk_legacy_string<E>(detail::read_file(file), file.string(), options);
 }
 
 }  // namespace plastifem::io

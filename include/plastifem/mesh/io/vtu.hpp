@@ -88,6 +88,16 @@ struct MeshData {
   std::map<std::string, Eigen::MatrixXd> cell_data;
 };
 
+/// Options of the mesh readers (read_vtu, read_vtk_legacy, read_gmsh and their *_string forms),
+/// an optional last argument.
+struct ReadOptions {
+  /// Remove the nodes no element uses (a Gmsh file's geometry points, say): the other nodes keep
+  /// their order, renumbered; node sets lose the dropped nodes, point fields their columns (see
+  /// drop_unused_nodes in mesh/mesh.hpp). Off by default, so that node i is the file's i-th node;
+  /// the mesh then lists such nodes in report().unused_nodes and the solver holds them fixed.
+  bool drop_unused_nodes = false;
+};
+
 // =================================================================================================
 // Helpers shared by the readers in this directory.
 namespace detail {
@@ -217,6 +227,20 @@ class TextScanner {
   size_t line_ = 1;  // line at pos_
   size_t last_ = 1;  // line of the last returned line or token
 };
+
+/// ReadOptions::drop_unused_nodes for a mesh with point fields: their columns follow the nodes.
+template <FiniteElement E>
+void drop_unused_points(MeshData<E>& data) {
+  if (data.mesh.report().unused_nodes.empty()) return;
+  std::vector<Index> old_to_new;
+  data.mesh = drop_unused_nodes(data.mesh, &old_to_new);
+  for (auto& [name, values] : data.point_data) {
+    Eigen::MatrixXd kept(values.rows(), data.mesh.num_nodes());
+    for (size_t i = 0; i < old_to_new.size(); ++i)
+      if (old_to_new[i] >= 0) kept.col(old_to_new[i]) = values.col(static_cast<Eigen::Index>(i));
+    values = std::move(kept);
+  }
+}
 
 /// Name of the plastifem element with this VTK cell type, for hints in error messages.
 inline const char* element_of_vtk_type(std::int64_t type) {
@@ -895,13 +919,12 @@ Mesh<E> assemble_mesh(const std::string& path, Eigen::Matrix3Xd nodes, const std
 
 }  // namespace detail
 
-/// Reads a .vtu file of E cells (as written by write_vtu) with its point and cell data. Throws
-/// IoError on malformed input ("file:line: what was expected") or a cell of another type;
-/// the mesh constructor's MeshError (inverted element, ...) propagates.
+/// read_vtu of a file's contents held in memory; `file_name` is the name error messages give
+/// ("file_name:line: what was expected").
 template <FiniteElement E>
-MeshData<E> read_vtu(const std::filesystem::path& file) {
-  const std::string path = file.string();
-  const std::string text = detail::read_file(file);
+MeshData<E> read_vtu_string(const std::string& text, const std::string& file_name = "<string>",
+                            const ReadOptions& options = {}) {
+  const std::string& path = file_name;
   const detail::XmlDocument doc = detail::scan_xml(text, path);
   const auto& els = doc.elements;
   const detail::XmlElement& root = els[0];
@@ -976,7 +999,16 @@ MeshData<E> read_vtu(const std::filesystem::path& file) {
   };
   read_fields("PointData", np, data.point_data);
   read_fields("CellData", nc, data.cell_data);
+  if (options.drop_unused_nodes) detail::drop_unused_points(data);
   return data;
+}
+
+/// Reads a .vtu file of E cells (as written by write_vtu) with its point and cell data. Throws
+/// IoError on malformed input ("file:line: what was expected") or a cell of another type; the
+/// mesh constructor's MeshError (inverted element, ...) propagates.
+template <FiniteElement E>
+MeshData<E> read_vtu(const std::filesystem::path& file, const ReadOptions& options = {}) {
+  return read_vtu_string<E>(detail::read_file(file), file.string(), options);
 }
 
 }  // namespace plastifem::io
