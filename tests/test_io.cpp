@@ -656,6 +656,64 @@ TEST_CASE("legacy vtk reader errors name the file and line or cell", "[io][vtk]"
   }
 }
 
+// ============================================== Gmsh: an element listed once per physical group ========
+
+TEST_CASE("gmsh 2.2: a volume element in two physical groups is one element in both sets", "[io][gmsh]") {
+  // Two hexes along x; each is listed twice, once in "left"/"right" and once in "body", as format
+  // 2.2 does. Gmsh's own writer gives each copy a new element tag (hex8_two_groups_v22.msh), other
+  // tools repeat the tag (..._same_tag_v22.msh). A quad on x = 0 is the face group "fixed".
+  const Mesh<Hex8> bar = bar_mesh<Hex8>(2, 1, 1);
+  for (const char* file : {"hex8_two_groups_v22.msh", "hex8_two_groups_same_tag_v22.msh"}) {
+    INFO(file);
+    const Mesh<Hex8> mesh = io::read_gmsh<Hex8>(data_path(file));
+    REQUIRE(mesh.num_elements() == 2);  // not 4: each hex counts once in mass and stiffness
+    REQUIRE(mesh.num_nodes() == 12);
+    CHECK(mesh.element_nodes(0) == bar.element_nodes(0));
+    CHECK(mesh.element_nodes(1) == bar.element_nodes(1));
+    CHECK(mesh.node_set("left") == std::vector<Index>{0, 1, 3, 4, 6, 7, 9, 10});
+    CHECK(mesh.node_set("right") == std::vector<Index>{1, 2, 4, 5, 7, 8, 10, 11});
+    CHECK(mesh.node_set("body").size() == 12);
+    CHECK(mesh.node_set("fixed") == std::vector<Index>{0, 3, 6, 9});
+    CHECK(mesh.node_sets().size() == 4);
+    REQUIRE(mesh.face_sets().size() == 1);
+    CHECK(mesh.face_set("fixed").size() == 1);
+    CHECK(same_faces(mesh.face_set("fixed"), select_boundary_faces(mesh, at_x0)));
+  }
+}
+
+TEST_CASE("gmsh: repeated element tags and node sets that are no copies are errors with both lines", "[io][gmsh]") {
+  const std::string head = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n$EndNodes\n";
+  auto msg = [&](const std::string& name, const std::string& elements) {
+    return io_error([&] { io::read_gmsh<Tet4>(write_text(name, head + elements)); });
+  };
+  // Tag 7 twice, over other nodes (line 14, then 15).
+  CHECK(contains(msg("dup_tag.msh", "$Elements\n2\n7 4 2 1 1 1 2 3 4\n7 4 2 2 1 2 3 4 5\n$EndElements\n"),
+                 "io_dup_tag.msh:15: element tag 7 appears twice with different nodes (first on line 14)"));
+  // The same four nodes in another order: no copy, a duplicated (here inverted) element.
+  CHECK(contains(msg("dup_nodes.msh", "$Elements\n2\n1 4 2 1 1 1 2 3 4\n2 4 2 2 1 2 1 3 4\n$EndElements\n"),
+                 "io_dup_nodes.msh:15: element 2 has the nodes of element 1 (line 14) in another order"));
+}
+
+TEST_CASE("gmsh 4.1: an entity in two physical groups, and a converted file that repeats elements", "[io][gmsh]") {
+  // In 4.1 each element is listed once, in its entity's block; the entity's physical tags (here
+  // volume 1 in groups 2 and 3) say which groups it is in.
+  const std::string head = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n3 2 \"a\"\n3 3 \"b\"\n$EndPhysicalNames\n";
+  const std::string nodes = "$Nodes\n1 4 1 4\n3 1 0 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n$EndNodes\n";
+  const Mesh<Tet4> one = io::read_gmsh<Tet4>(write_text(
+      "groups41.msh", head + "$Entities\n0 0 0 1\n1 0 0 0 1 1 1 2 2 3 0\n$EndEntities\n" + nodes +
+                          "$Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n"));
+  CHECK(one.num_elements() == 1);
+  CHECK(one.node_set("a") == std::vector<Index>{0, 1, 2, 3});
+  CHECK(one.node_set("b") == std::vector<Index>{0, 1, 2, 3});
+  // A 2.2 file converted to 4.1 (entity per group) may carry the copies along: merged as well.
+  const Mesh<Tet4> two = io::read_gmsh<Tet4>(write_text(
+      "copies41.msh", head + "$Entities\n0 0 0 2\n1 0 0 0 1 1 1 1 2 0\n2 0 0 0 1 1 1 1 3 0\n$EndEntities\n" + nodes +
+                          "$Elements\n2 2 1 2\n3 1 4 1\n1 1 2 3 4\n3 2 4 1\n2 1 2 3 4\n$EndElements\n"));
+  CHECK(two.num_elements() == 1);
+  CHECK(two.node_set("a") == std::vector<Index>{0, 1, 2, 3});
+  CHECK(two.node_set("b") == std::vector<Index>{0, 1, 2, 3});
+}
+
 // ============================================================= nodes no element uses ========
 
 TEST_CASE("readers can drop the nodes no element uses (Gmsh geometry points)", "[io][gmsh]") {

@@ -12,6 +12,11 @@
 //     volume type is an error, lower-dimensional elements are only used for physical groups.
 //     Gmsh's Tet10 numbers its last two mid-edge nodes the other way round from VTK (Gmsh node 8
 //     is on edge (2,3), node 9 on edge (1,3)); they are swapped into plastifem's (VTK's) order.
+//   - A volume element listed several times is one element: lines with its tag, or with its
+//     nodes in the same order, are merged and their groups all kept. 2.2 lists an element once
+//     per physical group (Gmsh's writer under a new tag each time, other tools under the same
+//     tag); 4.1 lists it once, in its entity's block, with the entity's groups in $Entities, but
+//     converted files may still repeat it.
 //   - Physical groups (2.2: the element's first tag; 4.1: the physical tags of its entity in
 //     $Entities): each becomes a node set (all nodes of its elements), named by $PhysicalNames or
 //     "physical_<tag>". Groups of different dimensions with the same name share one set. A 2D
@@ -389,7 +394,16 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
       parser.fail_at(el.line, fmt::format("element {} refers to node {}, which is not in $Nodes", el.tag, tag));
     return it->second;
   };
-  std::vector<typename Mesh<E>::Connectivity> cells;
+  // Format 2.2 lists an element once per physical group it is in: Gmsh's own writer gives each
+  // copy a new element tag, other tools repeat the tag. Either way (a repeated tag, or the same
+  // nodes in the same order) it is one element, kept once; every copy still counts for its group
+  // below. A repeated tag over other nodes, or the same nodes in another order, is refused here
+  // with both lines (Mesh would refuse the duplicate without them).
+  using Connectivity = typename Mesh<E>::Connectivity;
+  std::vector<Connectivity> cells;
+  std::vector<const Element*> first_line;              // per cell: the element that defined it
+  std::unordered_map<long long, size_t> cell_of_tag;   // element tag -> cell
+  std::map<Connectivity, size_t> cell_of_nodes;        // sorted node indices -> cell
   for (const Element& el : f.elements) {
     for (size_t k = 0; k < el.num_nodes; ++k) node(el, k);  // every reference must resolve
     if (el.dim != 3) continue;
@@ -400,9 +414,27 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
                                           el.tag, info ? info->name : "volume element", el.type, E::name,
                                           detail::gmsh_type_info(want)->name, want));
     }
-    typename Mesh<E>::Connectivity c;
+    Connectivity c;
     for (int k = 0; k < E::num_nodes; ++k) c[static_cast<size_t>(k)] = node(el, static_cast<size_t>(k));
     if constexpr (want == 11) std::swap(c[8], c[9]);  // Gmsh: 8 on edge (2,3), 9 on (1,3); VTK: the reverse
+    Connectivity sorted = c;
+    std::sort(sorted.begin(), sorted.end());
+    const auto by_tag = cell_of_tag.find(el.tag);
+    const auto by_nodes = cell_of_nodes.find(sorted);
+    if (by_tag != cell_of_tag.end() || by_nodes != cell_of_nodes.end()) {
+      const size_t first = by_tag != cell_of_tag.end() ? by_tag->second : by_nodes->second;
+      if (cells[first] == c) continue;  // a copy for another physical group
+      const Element& other = *first_line[first];
+      if (by_tag != cell_of_tag.end())
+        parser.fail_at(el.line, fmt::format("element tag {} appears twice with different nodes (first on line {})",
+                                            el.tag, other.line));
+      parser.fail_at(el.line, fmt::format("element {} has the nodes of element {} (line {}) in another order: a "
+                                          "duplicated element would count its mass and stiffness twice",
+                                          el.tag, other.tag, other.line));
+    }
+    cell_of_tag.emplace(el.tag, cells.size());
+    cell_of_nodes.emplace(sorted, cells.size());
+    first_line.push_back(&el);
     cells.push_back(c);
   }
   if (cells.empty())
