@@ -787,6 +787,169 @@ TEST_CASE("vtu and legacy vtk readers drop unused nodes with their point data co
   }
 }
 
+// ============================================================================== base64 ========
+
+TEST_CASE("base64 decoding: every length and padding, and malformed input", "[io][vtu]") {
+  std::mt19937 rng(5);
+  for (size_t n = 0; n < 40; ++n) {
+    std::vector<unsigned char> bytes(n);
+    for (auto& b : bytes) b = static_cast<unsigned char>(rng());
+    std::string text;
+    io::detail::base64_append(text, bytes.data(), bytes.size());
+    REQUIRE(text.size() == (n + 2) / 3 * 4);
+    CHECK(std::count(text.begin(), text.end(), '=') == static_cast<std::ptrdiff_t>((3 - n % 3) % 3));
+    const auto decoded = io::detail::base64_decode(text);
+    REQUIRE(decoded);
+    CHECK(*decoded == bytes);
+    for (size_t cut = 1; cut < text.size(); ++cut)  // a truncated text never decodes silently
+      if (cut % 4 != 0) CHECK(!io::detail::base64_decode(std::string_view(text).substr(0, cut)));
+  }
+  for (const char* bad : {"=", "==", "===", "====", "A===", "AB=C", "A=BC", "AB==CD==", "ABC=ABCD", "AB\nC", "AB-C"})
+    CHECK(!io::detail::base64_decode(bad));
+}
+
+namespace {
+/// base64 of a DataArray's block with a UInt64 byte count: one stream (VTK's layout) or the header
+/// and the data encoded apart.
+std::string b64_block(const std::vector<unsigned char>& data, bool apart) {
+  const std::uint64_t n = data.size();
+  std::vector<unsigned char> all(8);
+  std::memcpy(all.data(), &n, 8);
+  std::string out;
+  if (apart) {
+    io::detail::base64_append(out, all.data(), 8);
+    io::detail::base64_append(out, data.data(), data.size());
+    return out;
+  }
+  all.insert(all.end(), data.begin(), data.end());
+  io::detail::base64_append(out, all.data(), all.size());
+  return out;
+}
+template <class T>
+std::vector<unsigned char> bytes_of(std::initializer_list<T> values) {
+  std::vector<unsigned char> b(values.size() * sizeof(T));
+  std::memcpy(b.data(), std::data(values), b.size());
+  return b;
+}
+/// One tetrahedron with inline base64 arrays of the given types (UInt64 headers, little endian);
+/// the points are ascii unless given.
+std::string inline_base64_vtu(const std::string& conn_type, const std::string& conn, const std::string& offs_type,
+                              const std::string& offs, const std::string& types, const std::string& points = {}) {
+  return fmt::format(R"(<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="4" NumberOfCells="1">
+      <Points><DataArray type="Float64" NumberOfComponents="3" format="{}">{}</DataArray></Points>
+      <Cells>
+        <DataArray type="{}" Name="connectivity" format="binary">{}</DataArray>
+        <DataArray type="{}" Name="offsets" format="binary">{}</DataArray>
+        <DataArray type="UInt8" Name="types" format="binary">{}</DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+)",
+                     points.empty() ? "ascii" : "binary", points.empty() ? "0 0 0 1 0 0 0 1 0 0 0 1" : points,
+                     conn_type, conn, offs_type, offs, types);
+}
+}  // namespace
+
+TEST_CASE("vtu base64 with UInt64 headers: every padding, both layouts, short and truncated blocks", "[io][vtu]") {
+  SECTION("writer round trips whose blocks end in 0, 1 and 2 padding characters") {
+    // 8 + N bytes per block: Hex8 bars of 1, 2, 3 cells make the UInt8 types block end in each
+    // padding; fields of 1 to 3 components vary the Float64 blocks.
+    std::set<size_t> paddings;
+    for (int n = 1; n <= 6; ++n) {
+      const Mesh<Hex8> mesh = perturbed_bar<Hex8>(n, 1, 1);
+      std::mt19937 rng(n);
+      for (int comps = 1; comps <= 3; ++comps) {
+        INFO("bar of " << n << " hexes, " << comps << " components");
+        const Eigen::MatrixXd p = random_matrix(comps, mesh.num_nodes(), rng);
+        const Eigen::MatrixXd c = random_matrix(comps, mesh.num_elements(), rng);
+        const std::string path = out_path(fmt::format("b64_{}_{}.vtu", n, comps));
+        io::write_vtu(path, mesh, {{"p", p}}, {{"c", c}}, with_encoding(io::Encoding::appended_base64));
+        const std::string text = read_text(path);
+        const size_t start = text.find('_', text.find("<AppendedData")) + 1;
+        const size_t end = text.find('\n', start);
+        // The blocks are concatenated; count their padding from the offsets the writer declares.
+        for (size_t at = text.find("offset=\""); at != std::string::npos; at = text.find("offset=\"", at + 1)) {
+          const size_t offset = std::stoul(text.substr(at + 8));
+          const size_t next_at = text.find("offset=\"", at + 1);
+          const size_t block_end = next_at == std::string::npos ? end - start : std::stoul(text.substr(next_at + 8));
+          const std::string block = text.substr(start + offset, block_end - offset);
+          paddings.insert(static_cast<size_t>(std::count(block.begin(), block.end(), '=')));
+        }
+        const auto d = io::read_vtu<Hex8>(path);
+        CHECK(bit_equal(d.mesh.nodes(), mesh.nodes()));
+        CHECK(d.mesh.elements() == mesh.elements());
+        CHECK(bit_equal(d.point_data.at("p"), p));
+        CHECK(bit_equal(d.cell_data.at("c"), c));
+      }
+    }
+    CHECK(paddings == std::set<size_t>{0, 1, 2});
+  }
+  SECTION("hand-made inline blocks with 0, 1 and 2 padding characters, in both layouts") {
+    // Blocks of 8 + 4 (Int8), 8 + 8 (Int16), 8 + 16 (Int32), 8 + 32 (Int64) bytes and so on.
+    const auto c8 = bytes_of<std::int8_t>({0, 1, 2, 3});
+    const auto c16 = bytes_of<std::int16_t>({0, 1, 2, 3});
+    const auto c32 = bytes_of<std::int32_t>({0, 1, 2, 3});
+    const auto c64 = bytes_of<std::int64_t>({0, 1, 2, 3});
+    const auto o8 = bytes_of<std::uint8_t>({4});
+    const auto o16 = bytes_of<std::int16_t>({4});
+    const auto o32 = bytes_of<std::int32_t>({4});
+    const auto t = bytes_of<std::uint8_t>({10});
+    const std::pair<const char*, const std::vector<unsigned char>*> conns[] = {
+        {"Int8", &c8}, {"Int16", &c16}, {"Int32", &c32}, {"Int64", &c64}};
+    const std::pair<const char*, const std::vector<unsigned char>*> offs[] = {
+        {"UInt8", &o8}, {"Int16", &o16}, {"Int32", &o32}};
+    const auto xyz = bytes_of<double>({0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1});  // 96 bytes
+    std::set<size_t> paddings;  // of every base64 stream read
+    auto padding = [&](const std::string& block, bool apart) {
+      auto count = [](std::string_view s) { return static_cast<size_t>(std::count(s.begin(), s.end(), '=')); };
+      if (apart) {
+        paddings.insert(count(std::string_view(block).substr(0, 12)));  // 8 header bytes: always one '='
+        paddings.insert(count(std::string_view(block).substr(12)));
+      } else {
+        paddings.insert(count(block));
+      }
+    };
+    for (bool apart : {false, true})
+      for (const auto& [ct, cb] : conns)
+        for (const auto& [ot, ob] : offs) {
+          INFO(ct << " " << ot << (apart ? ", header and data apart" : ", one stream"));
+          const std::string cs = b64_block(*cb, apart), os = b64_block(*ob, apart), ts = b64_block(t, apart);
+          const std::string ps = b64_block(xyz, apart);
+          for (const std::string* block : {&cs, &os, &ts, &ps}) padding(*block, apart);
+          const auto d = io::read_vtu_string<Tet4>(inline_base64_vtu(ct, cs, ot, os, ts, ps), "inline.vtu");
+          CHECK(d.mesh.element(0) == Mesh<Tet4>::Connectivity{0, 1, 2, 3});
+          CHECK(d.mesh.node(3) == Vec3(0, 0, 1));
+        }
+    CHECK(paddings == std::set<size_t>{0, 1, 2});
+  }
+  const std::string conn = b64_block(bytes_of<std::int64_t>({0, 1, 2, 3}), false);
+  const std::string offs = b64_block(bytes_of<std::int64_t>({4}), false);
+  auto read = [&](const std::string& name, const std::string& types) {
+    return io_error([&] { io::read_vtu_string<Tet4>(inline_base64_vtu("Int64", conn, "Int64", offs, types), name); });
+  };
+  SECTION("a header block with more padding than the header allows: too short, never read past") {
+    // "AAAAAAAAAA==" decodes to 7 bytes: no 8-byte header.
+    CHECK(contains(read("short.vtu", "AAAAAAAAAA=="), "short.vtu:9: data of 'types' is too short for its 8-byte header"));
+    CHECK(contains(read("short2.vtu", "AAAAAAAAAA==Cg=="), "short2.vtu:9: data of 'types' is too short for its 8-byte header"));
+  }
+  SECTION("truncated and malformed blocks") {
+    const std::string types = b64_block({10}, false);  // 12 characters, no padding
+    for (size_t cut = 0; cut < types.size(); ++cut) {
+      INFO("cut to " << cut);
+      const std::string msg = read("cut.vtu", types.substr(0, cut));
+      CHECK(contains(msg, "cut.vtu:9: "));
+      CHECK((contains(msg, "truncated") || contains(msg, "holds")));
+    }
+    CHECK(contains(read("cut_apart.vtu", b64_block({10}, true).substr(0, 14)), "cut_apart.vtu:9: base64 data of 'types' is truncated"));
+    CHECK(contains(read("bad.vtu", "AQAAAAAA*AAK"), "bad.vtu:9: base64 data of 'types' is not valid base64"));
+    CHECK(contains(read("long.vtu", b64_block({10, 10}, false)), "DataArray 'types' holds 2 bytes, expected 1"));
+  }
+}
+
 // ========================================================================= performance ========
 
 TEST_CASE("vtu writes a 50k-node mesh well under a second", "[io][.perf]") {

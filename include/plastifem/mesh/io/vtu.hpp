@@ -815,6 +815,12 @@ class VtuArrays {
     return values;
   }
 
+  /// The byte count at the start of `bytes` (header_size_ bytes, which the caller must have).
+  std::uint64_t header_value(const XmlElement& a, const std::vector<unsigned char>& bytes) const {
+    if (bytes.size() < header_size_)  // never read past a short block
+      fail(a, fmt::format("data of '{}' is too short for its {}-byte header (truncated?)", name(a), header_size_));
+    return header_value(bytes.data());
+  }
   std::uint64_t header_value(const unsigned char* p) const {
     unsigned char b[8];
     std::memcpy(b, p, header_size_);
@@ -843,7 +849,7 @@ class VtuArrays {
   /// Base64 starting at `pos` of `s`: either base64(header + data) (VTK's layout) or
   /// base64(header) + base64(data); the padding '=' after the header tells which.
   std::vector<unsigned char> block(const XmlElement& a, std::string_view s, size_t pos) const {
-    const size_t enc_header = (header_size_ + 2) / 3 * 4;
+    const size_t enc_header = (header_size_ + 2) / 3 * 4;  // 8 characters (UInt32), 12 (UInt64)
     auto decode = [&](size_t at, size_t length) {
       if (at > s.size() || length > s.size() - at)
         fail(a, fmt::format("base64 data of '{}' is truncated", name(a)));
@@ -851,11 +857,15 @@ class VtuArrays {
       if (!bytes) fail(a, fmt::format("base64 data of '{}' is not valid base64", name(a)));
       return *bytes;
     };
+    // The header's characters decode to header_size_ bytes plus 0 to 2 of the data, or to fewer
+    // than header_size_ if they end in more padding than the header needs ("...==" for UInt64:
+    // 7 bytes); header_value checks.
     const std::vector<unsigned char> head = decode(pos, enc_header);
-    const std::uint64_t n = header_value(head.data());
+    const std::uint64_t n = header_value(a, head);
     if (n > s.size()) fail(a, fmt::format("base64 data of '{}' is truncated: {} bytes announced", name(a), n));
     if (s[pos + enc_header - 1] == '=') return decode(pos + enc_header, static_cast<size_t>((n + 2) / 3 * 4));
-    std::vector<unsigned char> all = decode(pos, static_cast<size_t>((header_size_ + n + 2) / 3 * 4));
+    const std::vector<unsigned char> all = decode(pos, static_cast<size_t>((header_size_ + n + 2) / 3 * 4));
+    if (all.size() < header_size_) fail(a, fmt::format("base64 data of '{}' is shorter than its header", name(a)));
     return std::vector<unsigned char>(all.begin() + static_cast<std::ptrdiff_t>(header_size_), all.end());
   }
 
