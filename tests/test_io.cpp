@@ -714,6 +714,66 @@ TEST_CASE("gmsh 4.1: an entity in two physical groups, and a converted file that
   CHECK(two.node_set("b") == std::vector<Index>{0, 1, 2, 3});
 }
 
+// ======================================================================== empty meshes ========
+
+TEST_CASE("a file without cells is refused with its name, in every format", "[io]") {
+  SECTION("vtu with 0 points and 0 cells") {
+    const std::string text = R"(<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="0" NumberOfCells="0">
+      <Points><DataArray type="Float64" NumberOfComponents="3" format="ascii"></DataArray></Points>
+      <Cells>
+        <DataArray type="Int64" Name="connectivity" format="ascii"></DataArray>
+        <DataArray type="Int64" Name="offsets" format="ascii"></DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii"></DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+)";
+    CHECK(contains(io_error([&] { io::read_vtu<Tet4>(write_text("empty.vtu", text)); }),
+                   "io_empty.vtu:4: the piece has no cells (NumberOfCells=\"0\", 0 points)"));
+    std::string points_only = text;
+    points_only.replace(points_only.find("NumberOfPoints=\"0\""), 18, "NumberOfPoints=\"1\"");
+    points_only.replace(points_only.find("ascii\"></DataArray></Points>"), 28, "ascii\">0 0 0</DataArray></Points>");
+    CHECK(contains(io_error([&] { io::read_vtu<Hex8>(write_text("points_only.vtu", points_only)); }),
+                   "io_points_only.vtu:4: the piece has no cells (NumberOfCells=\"0\", 1 points)"));
+  }
+  SECTION("legacy vtk with 0 points and 0 cells") {
+    const std::string head = "# vtk DataFile Version 3.0\nempty\nASCII\nDATASET UNSTRUCTURED_GRID\n";
+    CHECK(contains(io_error([&] {
+                     io::read_vtk_legacy<Tet4>(write_text("empty.vtk", head + "POINTS 0 double\nCELLS 0 0\nCELL_TYPES 0\n"));
+                   }),
+                   "io_empty.vtk:6: CELLS lists no cells (0 points)"));
+    // The 5.1 layout: "CELLS 1 0" is one offset (0) and no connectivity.
+    CHECK(contains(io_error([&] {
+                     io::read_vtk_legacy<Hex8>(write_text(
+                         "empty51.vtk", head + "POINTS 0 double\nCELLS 1 0\nOFFSETS vtktypeint64\n0\nCONNECTIVITY "
+                                               "vtktypeint64\nCELL_TYPES 0\n"));
+                   }),
+                   "io_empty51.vtk:6: CELLS lists no cells (0 points)"));
+  }
+  SECTION("gmsh without nodes and elements, or without volume elements") {
+    const std::string fmt22 = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n";
+    CHECK(contains(io_error([&] {
+                     io::read_gmsh<Tet4>(write_text("empty.msh", fmt22 + "$Nodes\n0\n$EndNodes\n$Elements\n0\n$EndElements\n"));
+                   }),
+                   "io_empty.msh:7: no Tet4 elements (Gmsh type 4) in $Elements"));
+    const std::string fmt41 = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n";
+    CHECK(contains(io_error([&] {
+                     io::read_gmsh<Hex8>(write_text("empty41.msh", fmt41 + "$Nodes\n0 0 0 0\n$EndNodes\n$Elements\n0 0 0 0\n$EndElements\n"));
+                   }),
+                   "io_empty41.msh:7: no Hex8 elements (Gmsh type 5) in $Elements"));
+    // Only a triangle and a point: no volume element.
+    CHECK(contains(io_error([&] {
+                     io::read_gmsh<Tet10>(write_text("flat.msh", fmt22 + "$Nodes\n3\n1 0 0 0\n2 1 0 0\n3 0 1 0\n$EndNodes\n"
+                                                                 "$Elements\n2\n1 2 2 1 1 1 2 3\n2 15 2 1 1 1\n$EndElements\n"));
+                   }),
+                   "io_flat.msh:10: no Tet10 elements (Gmsh type 11) in $Elements"));
+  }
+}
+
 // ============================================================= nodes no element uses ========
 
 TEST_CASE("readers can drop the nodes no element uses (Gmsh geometry points)", "[io][gmsh]") {

@@ -44,7 +44,7 @@ class LegacyVtkParser {
     std::vector<std::int64_t> ends, connectivity;  // cell i: connectivity[ends[i-1] .. ends[i])
     std::vector<size_t> cell_lines;
     bool have_cells = false;
-    size_t types_line = 0;
+    size_t types_line = 0, cells_line = 0;
     MeshData<E> data;
     std::map<std::string, Eigen::MatrixXd>* target = nullptr;  // POINT_DATA or CELL_DATA
     size_t target_n = 0;
@@ -60,7 +60,7 @@ class LegacyVtkParser {
       } else if (iequals(kw, "CELLS")) {
         if (have_cells) s_.fail("a second CELLS section");
         have_cells = true;
-        const size_t line_no = s_.line_number();
+        const size_t line_no = cells_line = s_.line_number();
         const size_t a = count("the number of cells"), b = count("the size of the cell list");
         const auto look = s_.save();
         std::string_view next;
@@ -167,6 +167,8 @@ class LegacyVtkParser {
     if (types->size() != ends.size())
       s_.fail_at(types_line, fmt::format("CELL_TYPES lists {} cells, CELLS {}", types->size(), ends.size()));
     check_cell_types<E>(s_.path(), *types);
+    if (ends.empty())  // a Mesh needs elements; say so with the file's name rather than as a MeshError
+      s_.fail_at(cells_line, fmt::format("CELLS lists no cells ({} points): no mesh to read", points->size() / 3));
     const Index np = static_cast<Index>(points->size() / 3);
     Eigen::Matrix3Xd nodes(3, np);
     std::copy(points->begin(), points->end(), nodes.data());
@@ -262,8 +264,8 @@ MeshData<E> read_vtk_legacy_string(std::string text, const std::string& file_nam
 }
 
 /// Reads an ASCII legacy .vtk UNSTRUCTURED_GRID of E cells with its point and cell data. Throws
-/// IoError on malformed input ("file:line: what was expected") or a cell of another type; the
-/// mesh constructor's MeshError (inverted element, ...) propagates.
+/// IoError on malformed input ("file:line: what was expected"), a cell of another type or a file
+/// without cells; the mesh constructor's MeshError (inverted element, ...) propagates.
 template <FiniteElement E>
 MeshData<E> read_vtk_legacy(const std::filesystem::path& file, const ReadOptions& options = {}) {
   return read_vtk_legacy_string<E>(detail::read_file(file), file.string(), options);

@@ -966,6 +966,8 @@ MeshData<E> read_vtu_string(const std::string& text, const std::string& file_nam
     return static_cast<size_t>(n);
   };
   const size_t np = count("NumberOfPoints"), nc = count("NumberOfCells");
+  if (nc == 0)  // a Mesh needs elements; say so with the file's name rather than as a MeshError
+    fail(piece, fmt::format("the piece has no cells (NumberOfCells=\"0\", {} points): no mesh to read", np));
 
   Eigen::Matrix3Xd nodes;
   {  // read first, allocate after: the counts come from the file, the values prove them
@@ -1014,8 +1016,8 @@ MeshData<E> read_vtu_string(const std::string& text, const std::string& file_nam
 }
 
 /// Reads a .vtu file of E cells (as written by write_vtu) with its point and cell data. Throws
-/// IoError on malformed input ("file:line: what was expected") or a cell of another type; the
-/// mesh constructor's MeshError (inverted element, ...) propagates.
+/// IoError on malformed input ("file:line: what was expected"), a cell of another type or a file
+/// without cells; the mesh constructor's MeshError (inverted element, ...) propagates.
 template <FiniteElement E>
 MeshData<E> read_vtu(const std::filesystem::path& file, const ReadOptions& options = {}) {
   return read_vtu_string<E>(detail::read_file(file), file.string(), options);
