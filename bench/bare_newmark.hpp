@@ -56,8 +56,13 @@ class BareNewmark {
     residual(u_try_, f_lin_, c0, dt, beta, gamma, f_ext_norm);
     rhs_ = -r_;
     constrained_blocks_.zero(rhs_);
-    if (first_increment_.size() == num_dofs()) du_ = first_increment_;
-    else du_.setZero();
+    if (first_increment_.size() == num_dofs() && previous_increment_.size() == num_dofs() && dt_last_ == dt &&
+        dt_previous_ == dt)
+      du_ = 2 * first_increment_ - previous_increment_;  // the Solver's extrapolated CG start
+    else if (first_increment_.size() == num_dofs())
+      du_ = first_increment_;
+    else
+      du_.setZero();
     constrained_blocks_.zero(du_);
     const Scalar* m = M_.values();
     const Scalar* k = K_.values();
@@ -65,7 +70,10 @@ class BareNewmark {
     for (Index i = 0; i < A_.num_values(); ++i) a[i] = c0 * m[i] + k[i];
     constrained_blocks_.apply(A_);
     linear_.solve(A_, rhs_, du_, linear_.settings().tolerance, false);
+    previous_increment_ = first_increment_;
     first_increment_ = du_;
+    dt_previous_ = dt_last_;
+    dt_last_ = dt;
     u_try_ += du_;
     assemble(u_try_, &K_);
     if (!f_int_.allFinite() || !u_try_.allFinite()) fail<SolverError>("bare step: non-finite state");
@@ -153,6 +161,8 @@ class BareNewmark {
   Vector X_, u_, v_, a_, gravity_;
   Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_try_, a_try_, v_try_, a_start_, first_increment_;
   bool linearised_ = false;
+  Vector previous_increment_;
+  Scalar dt_last_ = 0, dt_previous_ = 0;
 };
 
 }  // namespace plastifem::bench
