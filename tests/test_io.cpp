@@ -1010,6 +1010,38 @@ TEST_CASE("vtu base64 with UInt64 headers: every padding, both layouts, short an
   }
 }
 
+// =================================================================== fuzzing regressions ========
+
+TEST_CASE("inputs that crashed a fuzzer: read or refused with a plastifem::Error", "[io][fuzz]") {
+  // tests/data/fuzz_regressions/ holds every input a fuzz target (fuzz/) crashed on, named
+  // <reader>_<what>.<msh|vtu|vtk>. Each is read as a mesh of all three element types and must
+  // either read or throw a plastifem::Error: another exception fails this test, a crash the binary.
+  const std::filesystem::path dir = data_path("fuzz_regressions");
+  size_t files = 0, refused = 0, read_ok = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    const std::filesystem::path path = entry.path();
+    const std::string ext = path.extension().string();
+    if (ext != ".msh" && ext != ".vtu" && ext != ".vtk") continue;
+    ++files;
+    INFO(path.filename().string());
+    auto each = [&]<class E>() {
+      try {
+        if (ext == ".msh") io::read_gmsh<E>(path);
+        else if (ext == ".vtu") io::read_vtu<E>(path);
+        else io::read_vtk_legacy<E>(path);
+        ++read_ok;
+      } catch (const Error&) {
+        ++refused;
+      }
+    };
+    each.template operator()<Tet4>();
+    each.template operator()<Tet10>();
+    each.template operator()<Hex8>();
+  }
+  REQUIRE(files > 0);
+  CHECK(read_ok + refused == 3 * files);
+}
+
 // ========================================================================= performance ========
 
 TEST_CASE("vtu writes a 50k-node mesh well under a second", "[io][.perf]") {

@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets of this directory and runs each for a bounded time on its corpus.
+#
+#   fuzz/run.sh [seconds per target, default 60] [target ...]   (targets: gmsh vtu vtk_legacy)
+#
+# Environment: BUILD_DIR (default build-fuzz/ at the repository root, ignored by git), CXX
+# (default clang++-14), FUZZ_FLAGS (more libFuzzer options, e.g. -use_value_profile=1).
+# Each target starts from the committed seeds in fuzz/corpus/<target>/ plus the working corpus
+# $BUILD_DIR/corpus/<target>/, where new inputs that grow coverage go (`fuzz/run.sh --merge`
+# minimises the committed seeds instead of fuzzing). Crashes, leaks and timeouts are written to
+# $BUILD_DIR/findings/<target>/ and make the script exit non-zero; once fixed, a finding belongs in
+# tests/data/fuzz_regressions/ (see fuzz/README.md).
+set -euo pipefail
+
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/.." && pwd)
+build=${BUILD_DIR:-$root/build-fuzz}
+cxx=${CXX:-clang++-14}
+all_targets=(gmsh vtu vtk_legacy)
+
+merge=0
+if [[ ${1:-} == --merge ]]; then
+  merge=1
+  shift
+fi
+seconds=${1:-60}
+shift || true
+targets=("$@")
+[[ ${#targets[@]} -gt 0 ]] || targets=("${all_targets[@]}")
+
+mkdir -p "$build"
+# -fno-sanitize-recover: a UBSan report stops the run like an ASan one, so libFuzzer keeps the input.
+flags=(-std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+       -I "$root/include" -I/usr/include/eigen3)
+for t in "${targets[@]}"; do
+  src=$here/fuzz_$t.cpp
+  bin=$build/fuzz_$t
+  [[ -f $src ]] || { echo "no such target: $t (have: ${all_targets[*]})" >&2; exit 2; }
+  # Rebuild when the target or a header it reads (mesh/, element/, core/) is newer than the binary.
+  inc=$root/include/plastifem
+  if [[ ! -x $bin || -n $(find "$src" "$here/fuzz_common.hpp" "$inc/mesh" "$inc/element" "$inc/core" -newer "$bin" \
+                          -print -quit) ]]; then
+    echo "building $bin"
+    "$cxx" "${flags[@]}" "$src" -o "$bin" -lfmt
+  fi
+done
+
+status=0
+for t in "${targets[@]}"; do
+  seeds=$here/corpus/$t  # committed, small
+  corpus=$build/corpus/$t  # grows with every run, not committed
+  mkdir -p "$seeds" "$corpus"
+  if [[ $merge == 1 ]]; then  # shrink the committed seeds to those that add coverage
+    tmp=$(mktemp -d)
+    "$build/fuzz_$t" -merge=1 "$tmp" "$seeds" 2>"$build/merge_$t.log"
+    rm -f "$seeds"/*
+    cp "$tmp"/* "$seeds"/
+    rm -rf "$tmp"
+    echo "$t: seed corpus merged to $(ls "$seeds" | wc -l) files"
+    continue
+  fi
+  findings=$build/findings/$t
+  mkdir -p "$findings"
+  log=$build/fuzz_$t.$(date +%Y%m%d-%H%M%S).log
+  echo "fuzzing $t for $seconds s (log: $log)"
+  # -timeout: an input that takes over 10 s is a hang; -rss_limit_mb: so is one that takes > 2 GB.
+  # New inputs go to the first directory, the working corpus; the seeds are only read.
+  if ! "$build/fuzz_$t" "$corpus" "$seeds" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=16384 \
+       -dict="$here/$t.dict" -print_final_stats=1 ${FUZZ_FLAGS:-} \
+       -artifact_prefix="$findings/" >"$log" 2>&1; then
+    status=1
+    echo "  FOUND something: see $log and $findings/" >&2
+  fi
+  grep -E "stat::number_of_executed_units|Done [0-9]+ runs" "$log" | tail -2 | sed 's/^/  /' || true
+done
+exit $status
