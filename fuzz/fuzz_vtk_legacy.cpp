@@ -10,6 +10,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     plastifem::fuzz::check_mesh(d.mesh);
     for (const auto& [name, v] : d.point_data) PLASTIFEM_FUZZ_CHECK(v.cols() == d.mesh.num_nodes());
     for (const auto& [name, v] : d.cell_data) PLASTIFEM_FUZZ_CHECK(v.cols() == d.mesh.num_elements());
+    plastifem::fuzz::check_dropped(d, plastifem::io::read_vtk_legacy_string<E>(text, "fuzz.vtk", {.drop_unused_nodes = true}));
   });
   return 0;
 }

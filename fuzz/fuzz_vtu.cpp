@@ -38,6 +38,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   fuzz::for_each_element([&]<class E>() {
     const io::MeshData<E> d = io::read_vtu_string<E>(text, "fuzz.vtu");
     fuzz::check_mesh(d.mesh);
+    fuzz::check_dropped(d, io::read_vtu_string<E>(text, "fuzz.vtu", {.drop_unused_nodes = true}));
     io::VtuOptions options;
     options.encoding = static_cast<io::Encoding>(size % 3);
     try {  // fields with names the writer refuses (empty, duplicated after unescaping) are no finding
