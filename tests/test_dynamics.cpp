@@ -74,7 +74,7 @@ void free_fall(MassKind kind) {
 /// u(t) = q(t) phi for the scalar Newmark recurrence of q'' + c q' + w^2 q = 0.
 struct ModalNewmark {
   Scalar w2, c, dt, beta = 0.25, gamma = 0.5;
-  Scalar q, v, a;
+  Scalar q = 1, v = 0, a = 0;
   void step() {
     const Scalar c0 = 1 / (beta * dt * dt), c1 = gamma / (beta * dt);
     // a1 = c0 (q1 - q - dt v) - (1/(2 beta) - 1) a, v1 = v + dt ((1 - gamma) a + gamma a1),

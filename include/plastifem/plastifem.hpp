@@ -1,5 +1,7 @@
 #pragma once
-// plastifem: one include for the whole toolkit.
+// plastifem: one include for the toolkit's elements, meshes, models and solvers. Files
+// (VTU/PVD output, Gmsh and VTK readers) are in <plastifem/mesh/io/io.hpp>, included where
+// needed: it is a third of the parse time of everything else.
 #include <plastifem/core/error.hpp>
 #include <plastifem/core/types.hpp>
 #include <plastifem/element/element.hpp>
@@ -7,4 +9,3 @@
 #include <plastifem/mesh/mesh.hpp>
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/solver/solver.hpp>
-#include <plastifem/mesh/io/io.hpp>

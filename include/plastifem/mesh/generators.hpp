@@ -7,6 +7,10 @@
 //   box:         xmin xmax ymin ymax zmin zmax
 //   thick shell: bottom (the given surface) top (its offset)
 //   tube:        inner outer xmin xmax
+//
+// The generators are function templates (of an unused parameter) only so that a file compiles
+// the ones it calls: each instantiates its element type's Mesh, whose validation is most of the
+// 2 s this header cost every file that included it when they were plain inline functions.
 #include <plastifem/mesh/selection.hpp>
 
 #include <numbers>
@@ -81,7 +85,8 @@ void name_box_sides(Mesh<E>& mesh, const BoxSpec& b) {
 }  // namespace detail
 
 /// Hex8 grid, one element per cell.
-inline Mesh<Hex8> box_hex8(const BoxSpec& b) {
+template <class = void>
+Mesh<Hex8> box_hex8(const BoxSpec& b) {
   detail::check_box(b);
   std::vector<Mesh<Hex8>::Connectivity> cells;
   cells.reserve(static_cast<size_t>(b.nx) * b.ny * b.nz);
@@ -99,7 +104,8 @@ inline Mesh<Hex8> box_hex8(const BoxSpec& b) {
 
 /// Tet4 grid: each cell split into 6 tetrahedra around its diagonal (0,0,0)-(1,1,1) (Kuhn /
 /// Freudenthal). Every cell is split the same way, so neighbours' face diagonals match.
-inline Mesh<Tet4> box_tet4_kuhn(const BoxSpec& b) {
+template <class = void>
+Mesh<Tet4> box_tet4_kuhn(const BoxSpec& b) {
   detail::check_box(b);
   const Eigen::Matrix3Xd X = detail::box_nodes(b);
   // Path 0 -> e_a -> e_a + e_b -> (1,1,1) for each permutation (a, b, c) of the axes.
@@ -123,7 +129,8 @@ inline Mesh<Tet4> box_tet4_kuhn(const BoxSpec& b) {
 
 /// Tet4 grid: each cell split into 5 tetrahedra (one central, four corners), mirrored on
 /// alternate cells (parity of i + j + k) so that face diagonals match across neighbours.
-inline Mesh<Tet4> box_tet4_five(const BoxSpec& b) {
+template <class = void>
+Mesh<Tet4> box_tet4_five(const BoxSpec& b) {
   detail::check_box(b);
   const Eigen::Matrix3Xd X = detail::box_nodes(b);
   static constexpr int even[5][4] = {{1, 2, 4, 7}, {0, 1, 2, 4}, {3, 1, 2, 7}, {5, 1, 4, 7}, {6, 2, 4, 7}};
@@ -149,7 +156,8 @@ inline Mesh<Tet4> box_tet4_five(const BoxSpec& b) {
 /// Tet10 from Tet4: one new node at the middle of every edge, shared by all tets around it.
 /// Node sets keep their nodes plus the mid-edge nodes whose two ends are both in the set;
 /// face sets carry over unchanged (same element and local face numbers).
-inline Mesh<Tet10> promote_to_tet10(const Mesh<Tet4>& tet4) {
+template <class = void>
+Mesh<Tet10> promote_to_tet10(const Mesh<Tet4>& tet4) {
   std::unordered_map<std::uint64_t, Index> mid;
   mid.reserve(static_cast<size_t>(tet4.num_elements()) * 2);
   std::vector<Vec3> extra;
@@ -221,7 +229,8 @@ struct QuadSurface {
 
 /// Thick shell: the surface offset along its (area-weighted, averaged) vertex normals by
 /// `thickness` in `layers` Hex8 layers. Negative thickness offsets against the normals.
-inline Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int layers) {
+template <class = void>
+Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int layers) {
   if (layers < 1) fail<InvalidArgument>("thick shell needs at least one layer, got {}", layers);
   if (!(std::abs(thickness) > 0) || !std::isfinite(thickness))
     fail<InvalidArgument>("thick shell thickness must be finite and non-zero, got {}", thickness);
@@ -272,7 +281,8 @@ inline Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int l
 /// Cylindrical tube along x (a vessel): inner radius r_in, outer r_out, length L; n_circ cells
 /// around, n_axial along, n_radial through the wall. Built as the thick shell of the inner
 /// cylinder (whose vertex normals are exactly radial, so the outer radius is exact).
-inline Mesh<Hex8> tube_hex8(Scalar r_in, Scalar r_out, Scalar length, int n_circ, int n_axial, int n_radial) {
+template <class = void>
+Mesh<Hex8> tube_hex8(Scalar r_in, Scalar r_out, Scalar length, int n_circ, int n_axial, int n_radial) {
   if (!(r_in > 0) || !(r_out > r_in) || !(length > 0))
     fail<InvalidArgument>("tube needs 0 < r_in < r_out and length > 0, got r_in={}, r_out={}, length={}", r_in,
                           r_out, length);
@@ -311,5 +321,20 @@ inline Mesh<Hex8> tube_hex8(Scalar r_in, Scalar r_out, Scalar length, int n_circ
   mesh.add_face_set("xmax", select_boundary_faces(mesh, at(L)));
   return mesh;
 }
+
+#ifdef PLASTIFEM_USE_COMPILED  // plastifem::compiled holds these (solver/instantiations.hpp)
+extern template Mesh<Hex8> box_hex8<void>(const BoxSpec&);
+extern template Mesh<Tet4> box_tet4_kuhn<void>(const BoxSpec&);
+extern template Mesh<Tet4> box_tet4_five<void>(const BoxSpec&);
+extern template Mesh<Tet10> promote_to_tet10<void>(const Mesh<Tet4>&);
+extern template Mesh<Hex8> thick_shell_hex8<void>(const QuadSurface&, Scalar, int);
+extern template Mesh<Hex8> tube_hex8<void>(Scalar, Scalar, Scalar, int, int, int);
+extern template Mesh<Tet4> bar_mesh<Tet4>(const BoxSpec&);
+extern template Mesh<Tet10> bar_mesh<Tet10>(const BoxSpec&);
+extern template Mesh<Hex8> bar_mesh<Hex8>(const BoxSpec&);
+extern template Mesh<Tet4> bar_mesh<Tet4>(int, int, int);
+extern template Mesh<Tet10> bar_mesh<Tet10>(int, int, int);
+extern template Mesh<Hex8> bar_mesh<Hex8>(int, int, int);
+#endif
 
 }  // namespace plastifem

@@ -101,65 +101,15 @@ class Mesh {
   /// Checks indices, coordinates and every element's Jacobian at the corners and at the points
   /// of its mass quadrature rule. Throws MeshError on the first problem; returns what is
   /// worth knowing but not fatal.
-  MeshReport validate() const {
-    MeshReport r;
-    if (num_elements() == 0)
-      fail<MeshError>("the mesh has no elements ({} nodes): nothing to simulate", num_nodes());
-    for (Index i = 0; i < num_nodes(); ++i)
-      if (!nodes_.col(i).allFinite())
-        fail<MeshError>("node {} has a non-finite coordinate ({}, {}, {})", i, nodes_(0, i), nodes_(1, i),
-                        nodes_(2, i));
-    std::vector<char> used(nodes_.cols(), 0);
-    for (Index e = 0; e < num_elements(); ++e) {
-      const auto& c = elements_[e];
-      for (int a = 0; a < E::num_nodes; ++a) {
-        if (c[a] < 0 || c[a] >= num_nodes())
-          fail<MeshError>("element {}, local node {}: node index {} out of range [0, {})", e, a, c[a],
-                          num_nodes());
-        for (int b = 0; b < a; ++b)
-          if (c[b] == c[a])
-            fail<MeshError>("element {} is degenerate: local nodes {} and {} are both node {}", e, b, a, c[a]);
-        used[c[a]] = 1;
-      }
-      r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, check_jacobian(e));
-    }
-    for (Index i = 0; i < num_nodes(); ++i)
-      if (!used[i]) r.unused_nodes.push_back(i);
-    check_duplicates();
-    return r;
-  }
+  MeshReport validate() const;
 
  private:
   // The scale-free shape check of element/element.hpp: det J of the element scaled to a unit
   // longest edge, relative to the reference element's; degenerate below 1e-10 (of a unit
   // cube's value), inverted below -1e-10.
-  Scalar check_jacobian(Index e) const {
-    const ShapeCheck c = check_shape<E>(element_nodes(e));
-    const char* what = c.at_corner ? "corner" : "quadrature point";
-    if (c.inverted())
-      fail<MeshError>("element {} is inverted: scaled det J = {:.3g} at {} {} (reorder its nodes: the {} "
-                      "numbering is documented in element/{}.hpp)",
-                      e, c.min_scaled_jacobian, what, c.where, E::name, lower(E::name));
-    if (!c.valid())
-      fail<MeshError>("element {} is degenerate: scaled det J = {:.3g} at {} {} (zero or near-zero volume, or a "
-                      "non-finite coordinate)",
-                      e, c.min_scaled_jacobian, what, c.where);
-    return c.min_scaled_jacobian;
-  }
+  Scalar check_jacobian(Index e) const;
   // Two elements over the same nodes (in any order) would double their mass and stiffness.
-  void check_duplicates() const {
-    std::vector<std::pair<Connectivity, Index>> sorted(elements_.size());
-    for (Index e = 0; e < num_elements(); ++e) {
-      sorted[e] = {elements_[e], e};
-      std::sort(sorted[e].first.begin(), sorted[e].first.end());
-    }
-    std::sort(sorted.begin(), sorted.end());
-    for (size_t k = 1; k < sorted.size(); ++k)
-      if (sorted[k].first == sorted[k - 1].first)
-        fail<MeshError>("elements {} and {} have the same nodes (a duplicated element would count its mass and "
-                        "stiffness twice)",
-                        std::min(sorted[k - 1].second, sorted[k].second), std::max(sorted[k - 1].second, sorted[k].second));
-  }
+  void check_duplicates() const;
   static std::string lower(std::string s) {
     for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     return s;
@@ -178,6 +128,71 @@ class Mesh {
   std::map<std::string, std::vector<FaceRef>> face_sets_;
   MeshReport report_;
 };
+
+template <FiniteElement E>
+MeshReport Mesh<E>::validate() const {
+  MeshReport r;
+  if (num_elements() == 0)
+    fail<MeshError>("the mesh has no elements ({} nodes): nothing to simulate", num_nodes());
+  for (Index i = 0; i < num_nodes(); ++i)
+    if (!nodes_.col(i).allFinite())
+      fail<MeshError>("node {} has a non-finite coordinate ({}, {}, {})", i, nodes_(0, i), nodes_(1, i),
+                      nodes_(2, i));
+  std::vector<char> used(nodes_.cols(), 0);
+  for (Index e = 0; e < num_elements(); ++e) {
+    const auto& c = elements_[e];
+    for (int a = 0; a < E::num_nodes; ++a) {
+      if (c[a] < 0 || c[a] >= num_nodes())
+        fail<MeshError>("element {}, local node {}: node index {} out of range [0, {})", e, a, c[a],
+                        num_nodes());
+      for (int b = 0; b < a; ++b)
+        if (c[b] == c[a])
+          fail<MeshError>("element {} is degenerate: local nodes {} and {} are both node {}", e, b, a, c[a]);
+      used[c[a]] = 1;
+    }
+    r.min_scaled_jacobian = std::min(r.min_scaled_jacobian, check_jacobian(e));
+  }
+  for (Index i = 0; i < num_nodes(); ++i)
+    if (!used[i]) r.unused_nodes.push_back(i);
+  check_duplicates();
+  return r;
+}
+
+template <FiniteElement E>
+Scalar Mesh<E>::check_jacobian(Index e) const {
+  const ShapeCheck c = check_shape<E>(element_nodes(e));
+  const char* what = c.at_corner ? "corner" : "quadrature point";
+  if (c.inverted())
+    fail<MeshError>("element {} is inverted: scaled det J = {:.3g} at {} {} (reorder its nodes: the {} "
+                    "numbering is documented in element/{}.hpp)",
+                    e, c.min_scaled_jacobian, what, c.where, E::name, lower(E::name));
+  if (!c.valid())
+    fail<MeshError>("element {} is degenerate: scaled det J = {:.3g} at {} {} (zero or near-zero volume, or a "
+                    "non-finite coordinate)",
+                    e, c.min_scaled_jacobian, what, c.where);
+  return c.min_scaled_jacobian;
+}
+
+template <FiniteElement E>
+void Mesh<E>::check_duplicates() const {
+  std::vector<std::pair<Connectivity, Index>> sorted(elements_.size());
+  for (Index e = 0; e < num_elements(); ++e) {
+    sorted[e] = {elements_[e], e};
+    std::sort(sorted[e].first.begin(), sorted[e].first.end());
+  }
+  std::sort(sorted.begin(), sorted.end());
+  for (size_t k = 1; k < sorted.size(); ++k)
+    if (sorted[k].first == sorted[k - 1].first)
+      fail<MeshError>("elements {} and {} have the same nodes (a duplicated element would count its mass and "
+                      "stiffness twice)",
+                      std::min(sorted[k - 1].second, sorted[k].second), std::max(sorted[k - 1].second, sorted[k].second));
+}
+
+#ifdef PLASTIFEM_USE_COMPILED  // plastifem::compiled holds these (solver/instantiations.hpp)
+extern template class Mesh<Tet4>;
+extern template class Mesh<Tet10>;
+extern template class Mesh<Hex8>;
+#endif
 
 /// The mesh without the nodes no element refers to (report().unused_nodes: a CAD file's geometry
 /// points, say). The other nodes keep their order and are renumbered 0..n-1; connectivity and node

@@ -112,9 +112,14 @@ struct LinearSolveReport {
   bool converged = true;
 };
 
-class LinearSolver {
+/// The linear solver of a step (see the file comment). A class template of an unused parameter
+/// only so that a file that does not solve compiles none of it, and a file built against
+/// plastifem::compiled takes it from the library (the sparse factorisations are ~1 s of
+/// compile time).
+template <class Unused = void>
+class BasicLinearSolver {
  public:
-  explicit LinearSolver(LinearSolverSettings s = {}) : settings_(s) {}
+  explicit BasicLinearSolver(LinearSolverSettings s = {}) : settings_(s) {}
   const LinearSolverSettings& settings() const { return settings_; }
   int threads() const { return threads_; }
   void set_threads(int threads) { threads_ = std::max(1, threads); }
@@ -137,28 +142,7 @@ class LinearSolver {
   }
 
  private:
-  LinearSolveReport solve_direct(const BlockSymmetricMatrix& block, const Vector& b, Vector& x, bool same_matrix) {
-    const bool cholmod = resolve_direct_solver(settings_.direct) == DirectSolver::CholmodSupernodal;
-    LinearSolveReport r;
-    r.iterations = 0;  // reused factorisation: one pair of triangular solves
-    if (!(same_matrix && factorised_)) {
-      block.copy_to(csc_);  // both read a CSC matrix (its lower triangle)
-      factorised_ = false;
-      if (cholmod) factorise_cholmod();
-      else factorise_ldlt();
-      factorised_ = true;
-      r.iterations = 1;
-    }
-#ifdef PLASTIFEM_HAS_CHOLMOD
-    if (cholmod) {
-      const detail::SerialOpenMPScope serial;
-      x = cholmod_->solve(b);
-      return r;
-    }
-#endif
-    x = ldlt_->solve(b);
-    return r;
-  }
+  LinearSolveReport solve_direct(const BlockSymmetricMatrix& block, const Vector& b, Vector& x, bool same_matrix);
 
   /// A zero or sign-changed pivot means the system is singular or indefinite (e.g. a body that
   /// is free to move rigidly in a static solve, or an exact tangent under compression).
@@ -168,87 +152,11 @@ class LinearSolver {
                       what, smallest, largest);
   }
 
-  void factorise_ldlt() {
-    if (!ldlt_) ldlt_ = std::make_unique<LDLT>();
-    if (!analysed_) {
-      ldlt_->analyzePattern(csc_);
-      analysed_ = true;
-    }
-    ldlt_->factorize(csc_);
-    const auto D = ldlt_->vectorD();
-    const Scalar dmax = D.cwiseAbs().maxCoeff();
-    if (ldlt_->info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax)) singular(D.minCoeff(), dmax, "LDLT pivot");
-  }
+  void factorise_ldlt();
 
-  void factorise_cholmod() {
-#ifdef PLASTIFEM_HAS_CHOLMOD
-    if (!cholmod_) cholmod_ = std::make_unique<detail::CholmodLLT>();
-    const detail::SerialOpenMPScope serial;
-    if (!analysed_) {
-      cholmod_->analyzePattern(csc_);
-      analysed_ = true;
-    }
-    cholmod_->factorize(csc_);
-    // LL^T fails at the first non-positive pivot; a positive but tiny one is caught by
-    // rcond = min diag(L) / max diag(L), whose square is LDLT's pivot ratio (same 1e-12 bound).
-    if (cholmod_->info() != Eigen::Success) singular(-1, 1, "CHOLMOD pivot ratio (not positive definite)");
-    const Scalar rcond = cholmod_->rcond();
-    if (!(rcond * rcond > 1e-12)) singular(rcond * rcond, 1, "CHOLMOD pivot ratio");
-#endif
-  }
+  void factorise_cholmod();
 
-  LinearSolveReport solve_cg(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance) {
-    const Index n = static_cast<Index>(b.size());
-    if (r_.size() != n) {
-      r_.resize(n), z_.resize(n), p_.resize(n), q_.resize(n), inv_diag_.resize(n);
-    }
-    A.diagonal_into(inv_diag_);
-    for (Index i = 0; i < n; ++i) {
-      if (!(inv_diag_[i] > 0))
-        fail<SolverError>("CG needs a positive diagonal; entry {} is {} (singular or indefinite system)", i,
-                          inv_diag_[i]);
-      inv_diag_[i] = 1 / inv_diag_[i];
-    }
-    LinearSolveReport rep;
-    // Reductions through core/vector_ops.hpp: independent of zeros appended to the vectors.
-    const Scalar bnorm = norm(b);
-    if (bnorm == 0) {
-      x.setZero();
-      return rep;
-    }
-    A.multiply(x, q_, threads_);
-    r_ = b - q_;
-    z_ = inv_diag_.cwiseProduct(r_);
-    p_ = z_;
-    Scalar rz = dot(r_, z_);
-    const Scalar target = tolerance * bnorm;
-    Scalar rnorm = norm(r_);
-    int k = 0;
-    while (rnorm > target && k < settings_.max_iterations) {
-      A.multiply(p_, q_, threads_);
-      const Scalar pq = dot(p_, q_);
-      if (!(pq > 0)) fail<SolverError>("CG breakdown (p.Ap = {:.3g}): the system is not positive definite", pq);
-      const Scalar alpha = rz / pq;
-      Scalar rz_new, rr;
-      cg_update(alpha, p_.data(), q_.data(), inv_diag_.data(), x.data(), r_.data(), z_.data(), n, rz_new, rr);
-      p_ = z_ + (rz_new / rz) * p_;
-      rz = rz_new;
-      rnorm = std::sqrt(rr);
-      ++k;
-    }
-    rep.iterations = k;
-    if (settings_.verify_residual) {
-      // The recursively updated r drifts from b - A x on ill-conditioned systems (a body held
-      // by one node): a "converged" CG then returned x ~ 1e6. One more product tells the truth.
-      A.multiply(x, q_, threads_);
-      r_ = b - q_;
-      rnorm = norm(r_);
-    }
-    rep.relative_residual = rnorm / bnorm;
-    rep.converged = rnorm <= target;
-    if (!x.allFinite()) fail<SolverError>("CG produced a non-finite solution (singular or indefinite system)");
-    return rep;
-  }
+  LinearSolveReport solve_cg(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance);
 
   LinearSolverSettings settings_;
   using LDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
@@ -261,5 +169,122 @@ class LinearSolver {
   int threads_ = 1;
   Vector r_, z_, p_, q_, inv_diag_;
 };
+
+template <class Unused>
+LinearSolveReport BasicLinearSolver<Unused>::solve_direct(const BlockSymmetricMatrix& block, const Vector& b, Vector& x,
+                                                          bool same_matrix) {
+  const bool cholmod = resolve_direct_solver(settings_.direct) == DirectSolver::CholmodSupernodal;
+  LinearSolveReport r;
+  r.iterations = 0;  // reused factorisation: one pair of triangular solves
+  if (!(same_matrix && factorised_)) {
+    block.copy_to(csc_);  // both read a CSC matrix (its lower triangle)
+    factorised_ = false;
+    if (cholmod) factorise_cholmod();
+    else factorise_ldlt();
+    factorised_ = true;
+    r.iterations = 1;
+  }
+#ifdef PLASTIFEM_HAS_CHOLMOD
+  if (cholmod) {
+    const detail::SerialOpenMPScope serial;
+    x = cholmod_->solve(b);
+    return r;
+  }
+#endif
+  x = ldlt_->solve(b);
+  return r;
+}
+
+template <class Unused>
+void BasicLinearSolver<Unused>::factorise_ldlt() {
+  if (!ldlt_) ldlt_ = std::make_unique<LDLT>();
+  if (!analysed_) {
+    ldlt_->analyzePattern(csc_);
+    analysed_ = true;
+  }
+  ldlt_->factorize(csc_);
+  const auto D = ldlt_->vectorD();
+  const Scalar dmax = D.cwiseAbs().maxCoeff();
+  if (ldlt_->info() != Eigen::Success || !(D.minCoeff() > 1e-12 * dmax)) singular(D.minCoeff(), dmax, "LDLT pivot");
+}
+
+template <class Unused>
+void BasicLinearSolver<Unused>::factorise_cholmod() {
+#ifdef PLASTIFEM_HAS_CHOLMOD
+  if (!cholmod_) cholmod_ = std::make_unique<detail::CholmodLLT>();
+  const detail::SerialOpenMPScope serial;
+  if (!analysed_) {
+    cholmod_->analyzePattern(csc_);
+    analysed_ = true;
+  }
+  cholmod_->factorize(csc_);
+  // LL^T fails at the first non-positive pivot; a positive but tiny one is caught by
+  // rcond = min diag(L) / max diag(L), whose square is LDLT's pivot ratio (same 1e-12 bound).
+  if (cholmod_->info() != Eigen::Success) singular(-1, 1, "CHOLMOD pivot ratio (not positive definite)");
+  const Scalar rcond = cholmod_->rcond();
+  if (!(rcond * rcond > 1e-12)) singular(rcond * rcond, 1, "CHOLMOD pivot ratio");
+#endif
+}
+
+template <class Unused>
+LinearSolveReport BasicLinearSolver<Unused>::solve_cg(const BlockSymmetricMatrix& A, const Vector& b, Vector& x,
+                                                      Scalar tolerance) {
+  const Index n = static_cast<Index>(b.size());
+  if (r_.size() != n) {
+    r_.resize(n), z_.resize(n), p_.resize(n), q_.resize(n), inv_diag_.resize(n);
+  }
+  A.diagonal_into(inv_diag_);
+  for (Index i = 0; i < n; ++i) {
+    if (!(inv_diag_[i] > 0))
+      fail<SolverError>("CG needs a positive diagonal; entry {} is {} (singular or indefinite system)", i,
+                        inv_diag_[i]);
+    inv_diag_[i] = 1 / inv_diag_[i];
+  }
+  LinearSolveReport rep;
+  // Reductions through core/vector_ops.hpp: independent of zeros appended to the vectors.
+  const Scalar bnorm = norm(b);
+  if (bnorm == 0) {
+    x.setZero();
+    return rep;
+  }
+  A.multiply(x, q_, threads_);
+  r_ = b - q_;
+  z_ = inv_diag_.cwiseProduct(r_);
+  p_ = z_;
+  Scalar rz = dot(r_, z_);
+  const Scalar target = tolerance * bnorm;
+  Scalar rnorm = norm(r_);
+  int k = 0;
+  while (rnorm > target && k < settings_.max_iterations) {
+    A.multiply(p_, q_, threads_);
+    const Scalar pq = dot(p_, q_);
+    if (!(pq > 0)) fail<SolverError>("CG breakdown (p.Ap = {:.3g}): the system is not positive definite", pq);
+    const Scalar alpha = rz / pq;
+    Scalar rz_new, rr;
+    cg_update(alpha, p_.data(), q_.data(), inv_diag_.data(), x.data(), r_.data(), z_.data(), n, rz_new, rr);
+    p_ = z_ + (rz_new / rz) * p_;
+    rz = rz_new;
+    rnorm = std::sqrt(rr);
+    ++k;
+  }
+  rep.iterations = k;
+  if (settings_.verify_residual) {
+    // The recursively updated r drifts from b - A x on ill-conditioned systems (a body held
+    // by one node): a "converged" CG then returned x ~ 1e6. One more product tells the truth.
+    A.multiply(x, q_, threads_);
+    r_ = b - q_;
+    rnorm = norm(r_);
+  }
+  rep.relative_residual = rnorm / bnorm;
+  rep.converged = rnorm <= target;
+  if (!x.allFinite()) fail<SolverError>("CG produced a non-finite solution (singular or indefinite system)");
+  return rep;
+}
+
+using LinearSolver = BasicLinearSolver<>;
+
+#ifdef PLASTIFEM_USE_COMPILED
+extern template class BasicLinearSolver<void>;
+#endif
 
 }  // namespace plastifem

@@ -38,38 +38,14 @@ class Solver {
   using StateType = State<NoPlasticState>;
   static constexpr int N = E::num_nodes;
 
-  Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings = {})
-      : settings_(validated(settings)), body_(mesh, material.validated()), system_(settings_),
-        constraints_(mesh.num_nodes()) {
-    if (const auto& unused = body_.mesh().report().unused_nodes; !unused.empty()) {
-      std::string ids;
-      for (size_t k = 0; k < unused.size() && k < 20; ++k) ids += fmt::format("{}{}", k ? ", " : "", unused[k]);
-      note(fmt::format("{} node{} no element uses ({}{}) {} held fixed and left out of the solve",
-                       unused.size(), unused.size() == 1 ? "" : "s", ids, unused.size() > 20 ? ", ..." : "",
-                       unused.size() == 1 ? "is" : "are"));
-    }
-    current_.reset(body_.num_dofs());
-    current_.serial = ++serial_;
-    rebuild();
-  }
+  Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings = {});
 
   // --- problem set-up ---------------------------------------------------------------------
   const Mesh<E>& mesh() const { return body_.mesh(); }
   const Material& material() const { return body_.material(); }
   const SolverSettings& settings() const { return settings_; }
   Index num_dofs() const { return body_.num_dofs(); }
-  void set_settings(const SolverSettings& s) {
-    validate_settings(s);
-    // A new mass or damping changes the balance the committed acceleration satisfied.
-    const bool balance_changed = s.mass != settings_.mass || s.rayleigh_mass != settings_.rayleigh_mass ||
-                                 s.rayleigh_stiffness != settings_.rayleigh_stiffness;
-    settings_ = s;
-    system_.set_settings(body_, settings_);
-    system_.set_threads(threads());
-    loads_.build(mesh(), material().density, settings_.mass, num_dofs());
-    if (balance_changed) current_.acceleration_known = false;
-    dynamics_.invalidate();
-  }
+  void set_settings(const SolverSettings& s);
 
   /// Fixes the given nodes (all components, or those in `mask`).
   ConstraintHandle fix(std::span<const Index> nodes, DofMask mask = {}) { return prescribe(nodes, PrescribedMotion{}, mask); }
@@ -78,87 +54,34 @@ class Solver {
     return prescribe(nodes, PrescribedMotion{std::move(u), {}, {}}, mask);
   }
   /// Prescribes a path with (optionally) its exact velocity and acceleration.
-  ConstraintHandle prescribe(std::span<const Index> nodes, PrescribedMotion motion, DofMask mask = {}) {
-    check_nodes(nodes, "boundary condition");
-    const ConstraintHandle h = constraints_.add(nodes, std::move(motion), mask);
-    constraints_changed();
-    return h;
-  }
+  ConstraintHandle prescribe(std::span<const Index> nodes, PrescribedMotion motion, DofMask mask = {});
   /// Attaches a grasper to `nodes` where they are now: from now on each follows the grasper's
   /// translation, u_i(t) = u_i(now) + path(t) - path(now) (all components).
-  ConstraintHandle grasp(std::span<const Index> nodes, std::function<Vec3(Scalar)> path) {
-    check_nodes(nodes, "grasp");
-    if (!path) fail<InvalidArgument>("grasp: the path is empty");
-    const Vec3 p0 = path(time());
-    if (!p0.allFinite()) fail<InvalidArgument>("grasp: path({}) is not finite", time());
-    std::vector<Vec3> offsets;
-    for (Index i : nodes) offsets.push_back(displacement(i) - p0);
-    const ConstraintHandle h = constraints_.add(
-        nodes, PrescribedMotion{[path](Scalar t, const Vec3&) { return path(t); }, {}, {}}, DofMask{}, std::move(offsets));
-    constraints_changed();
-    return h;
-  }
+  ConstraintHandle grasp(std::span<const Index> nodes, std::function<Vec3(Scalar)> path);
   /// Lets go of a constraint set: its nodes move freely from their current displacement and
   /// velocity (where an earlier set constrains the same dofs, that one applies again).
-  void release(ConstraintHandle h) {
-    constraints_.remove(h);
-    constraints_changed();
-  }
+  void release(ConstraintHandle h);
   /// Gives a constraint set a new motion (a grasper that changes direction).
-  void replace(ConstraintHandle h, PrescribedMotion motion) {
-    constraints_.replace(h, std::move(motion));
-    constraints_changed();
-  }
+  void replace(ConstraintHandle h, PrescribedMotion motion);
 
   /// Force `f` on each of the given nodes, scaled by `curve(t)`.
-  LoadHandle add_nodal_force(std::span<const Index> nodes, const Vec3& f, LoadCurve curve = {}) {
-    check_nodes(nodes, "nodal force");
-    check_finite(f, "nodal force");
-    return add_load({typename Loads<E>::NodalForces{{nodes.begin(), nodes.end()}, std::vector<Vec3>(nodes.size(), f)}},
-                    std::move(curve), "nodal force");
-  }
+  LoadHandle add_nodal_force(std::span<const Index> nodes, const Vec3& f, LoadCurve curve = {});
   /// forces[k] on nodes[k], scaled by `curve(t)`.
-  LoadHandle add_nodal_forces(std::span<const Index> nodes, std::span<const Vec3> forces, LoadCurve curve = {}) {
-    check_nodes(nodes, "nodal forces");
-    if (forces.size() != nodes.size())
-      fail<InvalidArgument>("nodal forces: {} forces for {} nodes", forces.size(), nodes.size());
-    for (const Vec3& f : forces) check_finite(f, "nodal force");
-    return add_load({typename Loads<E>::NodalForces{{nodes.begin(), nodes.end()}, {forces.begin(), forces.end()}}},
-                    std::move(curve), "nodal forces");
-  }
+  LoadHandle add_nodal_forces(std::span<const Index> nodes, std::span<const Vec3> forces, LoadCurve curve = {});
   /// Body force per unit mass (gravity): the consistent nodal loads rho int N_a g dV with the
   /// consistent mass, m_aa g with the lumped one, so that a free body falls at exactly g.
-  LoadHandle add_gravity(const Vec3& g, LoadCurve curve = {}) {
-    check_finite(g, "gravity");
-    return add_load({typename Loads<E>::BodyForce{g}}, std::move(curve), "gravity");
-  }
+  LoadHandle add_gravity(const Vec3& g, LoadCurve curve = {});
   /// Traction t (force per unit reference area) on boundary faces, as consistent nodal loads.
-  LoadHandle add_traction(const std::vector<FaceRef>& faces, const Vec3& t, LoadCurve curve = {}) {
-    check_finite(t, "traction");
-    for (const FaceRef& f : faces)
-      if (f.element < 0 || f.element >= mesh().num_elements() || f.face < 0 || f.face >= E::num_faces)
-        fail<InvalidArgument>("traction: face (element {}, local face {}) out of range", f.element, f.face);
-    return add_load({typename Loads<E>::Traction{faces, t}}, std::move(curve), "traction");
-  }
-  void remove_load(LoadHandle h) {
-    loads_.remove(h);
-    current_.acceleration_known = false;
-  }
+  LoadHandle add_traction(const std::vector<FaceRef>& faces, const Vec3& t, LoadCurve curve = {});
+  void remove_load(LoadHandle h);
   /// Removes every load (constraints stay).
-  void clear_loads() {
-    loads_.clear();
-    current_.acceleration_known = false;
-  }
+  void clear_loads();
 
   /// The dof map (assembly/dof_map.hpp): block rows per (node, slot).
   const DofMap& dof_map() const { return body_.dof_map(); }
   /// Adds a dof slot to a node (the enrichment policies' entry point): the system is rebuilt,
   /// the state grows with zeros in the new rows. A slot no element couples is held at zero.
-  Index add_dof_slot(Index node) {
-    const Index row = body_.dof_map().add_slot(node);
-    rebuild();
-    return row;
-  }
+  Index add_dof_slot(Index node);
 
   // --- state ------------------------------------------------------------------------------
   Scalar time() const { return current_.t; }
@@ -169,130 +92,47 @@ class Solver {
   /// The committed state (every field a step changes).
   const StateType& state() const { return current_; }
   /// Current positions x = X + u, one node per column.
-  Eigen::Matrix3Xd positions() const {
-    Eigen::Matrix3Xd x = mesh().nodes();
-    x += Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
-    return x;
-  }
+  Eigen::Matrix3Xd positions() const;
   /// Sets u, v and t; the acceleration is then solved from equilibrium at the next step, and
   /// the state counts as balanced with the load f_int(u) for statics.
-  void set_state(const Vector& u, const Vector& v, Scalar time = 0) {
-    if (u.size() != num_dofs() || v.size() != num_dofs())
-      fail<InvalidArgument>("state vectors need {} entries, got {} and {}", num_dofs(), u.size(), v.size());
-    if (!u.allFinite() || !v.allFinite()) fail<InvalidArgument>("state vectors must be finite");
-    if (!std::isfinite(time)) fail<InvalidArgument>("time must be finite, got {}", time);
-    StateType s;
-    s.reset(num_dofs());
-    s.u = u, s.v = v, s.t = time;
-    s.plastic = current_.plastic;
-    Vector f(num_dofs());
-    if (body_.assemble(u, f, nullptr, TangentKind::Projected, threads())) s.load = f;
-    s.serial = ++serial_;
-    current_.swap(s);
-  }
+  void set_state(const Vector& u, const Vector& v, Scalar time = 0);
   /// Uses `a` as the acceleration at the current time instead of solving for equilibrium.
-  void set_acceleration(const Vector& a) {
-    if (a.size() != num_dofs() || !a.allFinite())
-      fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
-    current_.a = a;
-    current_.acceleration_known = true;
-  }
+  void set_acceleration(const Vector& a);
 
   // --- solving ----------------------------------------------------------------------------
   /// Static equilibrium f_int(u) = f_ext(t) at the current time, by Newton in `load_steps`
   /// increments from the current state and load (solver/statics.hpp); velocity and
   /// acceleration are then zero.
-  StepReport solve_static(int load_steps = 1) {
-    auto p = parts();
-    work_.assign(current_);
-    dynamics_.invalidate();  // the system's K is statics' from here
-    StepReport r = statics_.solve(p, work_, load_steps, [](StateType&) {});
-    work_.serial = ++serial_;
-    current_.swap(work_);
-    return r;
-  }
+  StepReport solve_static(int load_steps = 1);
 
   /// Advances by dt with Newmark's method (solver/dynamics.hpp). If a step fails it is redone
   /// as two half steps, recursively, up to settings().max_step_cuts times; throws SolverError,
   /// with the state unchanged, if even the smallest sub-step fails.
-  StepReport step(Scalar dt) {
-    const auto t0 = std::chrono::steady_clock::now();
-    if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
-    if (!std::isfinite(current_.t + dt) || current_.t + dt == current_.t)
-      fail<InvalidArgument>("time step dt = {} is lost in the round-off of t = {}", dt, current_.t);
-    auto p = parts();
-    StepReport r = advance(current_, work_, trial_, dt, settings_.max_step_cuts,
-                           [&](const StateType& from, StateType& to, Scalar h) {
-                             return dynamics_.attempt(p, from, to, h, ++serial_);
-                           });
-    r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    return r;
-  }
+  StepReport step(Scalar dt);
 
   // --- observables ------------------------------------------------------------------------
-  Scalar kinetic_energy() const {
-    system_.M.multiply(current_.v, scratch_, threads());
-    return 0.5 * current_.v.dot(scratch_);
-  }
+  Scalar kinetic_energy() const;
   /// Elastic strain energy summed over elements.
-  Scalar strain_energy() const { return body_.strain_energy(current_.u); }
+  Scalar strain_energy() const;
   /// Work potential of the external loads at the current time: f_ext . u.
-  Scalar external_work_potential() const {
-    Vector f(num_dofs());
-    loads_.assemble(time(), f);
-    return f.dot(current_.u);
-  }
+  Scalar external_work_potential() const;
   /// Deformed volume.
-  Scalar volume() const { return body_.volume(current_.u); }
+  Scalar volume() const;
   /// Total mass, 1^T M 1 per direction.
   Scalar mass() const { return system_.M.sum() / 3; }
   /// Reaction forces at constrained dofs: f_int + M a + D v - f_ext (zero elsewhere), with the
   /// path's v and a at the constrained dofs.
-  Vector reaction_forces() const {
-    Vector f(num_dofs()), fe(num_dofs()), r(num_dofs()), w(num_dofs());
-    body_.assemble(current_.u, f, nullptr, TangentKind::Projected, threads());
-    loads_.assemble(time(), fe);
-    system_.M.multiply(current_.a, r, threads());
-    r += f - fe;
-    if (settings_.rayleigh_mass != 0) {
-      system_.M.multiply(current_.v, w, threads());
-      r += settings_.rayleigh_mass * w;
-    }
-    if (settings_.rayleigh_stiffness != 0) {
-      BlockSymmetricMatrix K0 = body_.assembler().zero_matrix();
-      body_.assemble_rest_stiffness(K0);
-      K0.multiply(current_.v, w, threads());
-      r += settings_.rayleigh_stiffness * w;
-    }
-    for (Index i = 0; i < num_dofs(); ++i)
-      if (!system_.constrained(i)) r[i] = 0;
-    return r;
-  }
+  Vector reaction_forces() const;
   /// Internal elastic forces at the current state.
-  Vector internal_force() const {
-    Vector f(num_dofs());
-    body_.assemble(current_.u, f, nullptr, TangentKind::Projected, threads());
-    return f;
-  }
+  Vector internal_force() const;
   /// Tangent stiffness at the current state (the exact one where the model and the settings
   /// use it; full symmetric storage).
-  SparseMatrix tangent() const {
-    BlockSymmetricMatrix K = body_.assembler().zero_matrix();
-    Vector f(num_dofs());
-    const bool exact = has_exact_tangent_v<Elastic> && settings_.newton.exact_tangent;
-    body_.assemble(current_.u, f, &K, exact ? TangentKind::Exact : TangentKind::Projected, threads());
-    return K.to_sparse();
-  }
+  SparseMatrix tangent() const;
   /// Mass matrix (full symmetric storage).
   SparseMatrix mass_matrix() const { return system_.M.to_sparse(); }
   /// Cauchy stress per element at its centre.
-  std::vector<Mat3> element_stress() const { return body_.element_stress(current_.u); }
-  Vector von_mises_stress() const {
-    const auto s = element_stress();
-    Vector vm(static_cast<Index>(s.size()));
-    for (size_t e = 0; e < s.size(); ++e) vm[static_cast<Index>(e)] = von_mises(s[e]);
-    return vm;
-  }
+  std::vector<Mat3> element_stress() const;
+  Vector von_mises_stress() const;
   /// Whether a user constraint holds this dof.
   bool is_constrained(Index dof) const { return system_.constrained(dof); }
   /// Number of distinct element shapes (elements that are translated copies share their
@@ -304,27 +144,9 @@ class Solver {
   Parts parts() { return Parts{body_, system_, constraints_, loads_, settings_, threads()}; }
 
   /// Everything derived from the dof map, rebuilt after it changed.
-  void rebuild() {
-    body_.rebuild();
-    const Index n = body_.num_dofs();
-    system_.rebuild(body_, settings_, constraints_.constrained_dofs());
-    system_.set_threads(threads());
-    loads_.build(mesh(), material().density, settings_.mass, n);
-    current_.grow(n);
-    work_.reset(n), trial_.reset(n);
-    dynamics_.resize(n);
-    scratch_.resize(n);
-  }
-  void constraints_changed() {
-    system_.set_constrained(body_, constraints_.constrained_dofs());
-    current_.acceleration_known = false;
-  }
-  LoadHandle add_load(typename Loads<E>::Definition def, LoadCurve curve, std::string what) {
-    const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
-    loads_.build_last(mesh());
-    current_.acceleration_known = false;
-    return h;
-  }
+  void rebuild();
+  void constraints_changed();
+  LoadHandle add_load(typename Loads<E>::Definition def, LoadCurve curve, std::string what);
 
   /// Threads for element loops and matrix products (settings().threads, 0: OpenMP's default).
   int threads() const { return settings_.threads > 0 ? settings_.threads : max_threads(); }
@@ -332,11 +154,7 @@ class Solver {
     validate_settings(s);
     return s;
   }
-  void check_nodes(std::span<const Index> nodes, const char* what) const {
-    for (Index i : nodes)
-      if (i < 0 || i >= mesh().num_nodes())
-        fail<InvalidArgument>("{}: node {} out of range [0, {})", what, i, mesh().num_nodes());
-  }
+  void check_nodes(std::span<const Index> nodes, const char* what) const;
   static void check_finite(const Vec3& v, const char* what) {
     if (!v.allFinite()) fail<InvalidArgument>("{} must be finite, got ({}, {}, {})", what, v.x(), v.y(), v.z());
   }
@@ -353,4 +171,320 @@ class Solver {
   mutable Vector scratch_;
 };
 
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings)
+    : settings_(validated(settings)), body_(mesh, material.validated()), system_(settings_),
+      constraints_(mesh.num_nodes()) {
+  if (const auto& unused = body_.mesh().report().unused_nodes; !unused.empty()) {
+    std::string ids;
+    for (size_t k = 0; k < unused.size() && k < 20; ++k) ids += fmt::format("{}{}", k ? ", " : "", unused[k]);
+    note(fmt::format("{} node{} no element uses ({}{}) {} held fixed and left out of the solve",
+                     unused.size(), unused.size() == 1 ? "" : "s", ids, unused.size() > 20 ? ", ..." : "",
+                     unused.size() == 1 ? "is" : "are"));
+  }
+  current_.reset(body_.num_dofs());
+  current_.serial = ++serial_;
+  rebuild();
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::prescribe(std::span<const Index> nodes, PrescribedMotion motion,
+                                                               DofMask mask) {
+  check_nodes(nodes, "boundary condition");
+  const ConstraintHandle h = constraints_.add(nodes, std::move(motion), mask);
+  constraints_changed();
+  return h;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::strain_energy() const {
+  return body_.strain_energy(current_.u);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::volume() const {
+  return body_.volume(current_.u);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+std::vector<Mat3> Solver<E, Elastic, Plastic, Enrich>::element_stress() const {
+  return body_.element_stress(current_.u);
+}
+
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) {
+  validate_settings(s);
+  // A new mass or damping changes the balance the committed acceleration satisfied.
+  const bool balance_changed = s.mass != settings_.mass || s.rayleigh_mass != settings_.rayleigh_mass ||
+                               s.rayleigh_stiffness != settings_.rayleigh_stiffness;
+  settings_ = s;
+  system_.set_settings(body_, settings_);
+  system_.set_threads(threads());
+  loads_.build(mesh(), material().density, settings_.mass, num_dofs());
+  if (balance_changed) current_.acceleration_known = false;
+  dynamics_.invalidate();
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::grasp(std::span<const Index> nodes, std::function<Vec3(Scalar)> path) {
+  check_nodes(nodes, "grasp");
+  if (!path) fail<InvalidArgument>("grasp: the path is empty");
+  const Vec3 p0 = path(time());
+  if (!p0.allFinite()) fail<InvalidArgument>("grasp: path({}) is not finite", time());
+  std::vector<Vec3> offsets;
+  for (Index i : nodes) offsets.push_back(displacement(i) - p0);
+  const ConstraintHandle h = constraints_.add(
+      nodes, PrescribedMotion{[path](Scalar t, const Vec3&) { return path(t); }, {}, {}}, DofMask{}, std::move(offsets));
+  constraints_changed();
+  return h;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::release(ConstraintHandle h) {
+  constraints_.remove(h);
+  constraints_changed();
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::replace(ConstraintHandle h, PrescribedMotion motion) {
+  constraints_.replace(h, std::move(motion));
+  constraints_changed();
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_nodal_force(std::span<const Index> nodes, const Vec3& f, LoadCurve curve) {
+  check_nodes(nodes, "nodal force");
+  check_finite(f, "nodal force");
+  return add_load({typename Loads<E>::NodalForces{{nodes.begin(), nodes.end()}, std::vector<Vec3>(nodes.size(), f)}},
+                  std::move(curve), "nodal force");
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_nodal_forces(std::span<const Index> nodes, std::span<const Vec3> forces, LoadCurve curve) {
+  check_nodes(nodes, "nodal forces");
+  if (forces.size() != nodes.size())
+    fail<InvalidArgument>("nodal forces: {} forces for {} nodes", forces.size(), nodes.size());
+  for (const Vec3& f : forces) check_finite(f, "nodal force");
+  return add_load({typename Loads<E>::NodalForces{{nodes.begin(), nodes.end()}, {forces.begin(), forces.end()}}},
+                  std::move(curve), "nodal forces");
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_gravity(const Vec3& g, LoadCurve curve) {
+  check_finite(g, "gravity");
+  return add_load({typename Loads<E>::BodyForce{g}}, std::move(curve), "gravity");
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_traction(const std::vector<FaceRef>& faces, const Vec3& t, LoadCurve curve) {
+  check_finite(t, "traction");
+  for (const FaceRef& f : faces)
+    if (f.element < 0 || f.element >= mesh().num_elements() || f.face < 0 || f.face >= E::num_faces)
+      fail<InvalidArgument>("traction: face (element {}, local face {}) out of range", f.element, f.face);
+  return add_load({typename Loads<E>::Traction{faces, t}}, std::move(curve), "traction");
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::remove_load(LoadHandle h) {
+  loads_.remove(h);
+  current_.acceleration_known = false;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::clear_loads() {
+  loads_.clear();
+  current_.acceleration_known = false;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Index Solver<E, Elastic, Plastic, Enrich>::add_dof_slot(Index node) {
+  const Index row = body_.dof_map().add_slot(node);
+  rebuild();
+  return row;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::positions() const {
+  Eigen::Matrix3Xd x = mesh().nodes();
+  x += Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
+  return x;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::set_state(const Vector& u, const Vector& v, Scalar time) {
+  if (u.size() != num_dofs() || v.size() != num_dofs())
+    fail<InvalidArgument>("state vectors need {} entries, got {} and {}", num_dofs(), u.size(), v.size());
+  if (!u.allFinite() || !v.allFinite()) fail<InvalidArgument>("state vectors must be finite");
+  if (!std::isfinite(time)) fail<InvalidArgument>("time must be finite, got {}", time);
+  StateType s;
+  s.reset(num_dofs());
+  s.u = u, s.v = v, s.t = time;
+  s.plastic = current_.plastic;
+  Vector f(num_dofs());
+  if (body_.assemble(u, f, nullptr, TangentKind::Projected, threads())) s.load = f;
+  s.serial = ++serial_;
+  current_.swap(s);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::set_acceleration(const Vector& a) {
+  if (a.size() != num_dofs() || !a.allFinite())
+    fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
+  current_.a = a;
+  current_.acceleration_known = true;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
+  auto p = parts();
+  work_.assign(current_);
+  dynamics_.invalidate();  // the system's K is statics' from here
+  StepReport r = statics_.solve(p, work_, load_steps, [](StateType&) {});
+  work_.serial = ++serial_;
+  current_.swap(work_);
+  return r;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
+  if (!std::isfinite(current_.t + dt) || current_.t + dt == current_.t)
+    fail<InvalidArgument>("time step dt = {} is lost in the round-off of t = {}", dt, current_.t);
+  auto p = parts();
+  StepReport r = advance(current_, work_, trial_, dt, settings_.max_step_cuts,
+                         [&](const StateType& from, StateType& to, Scalar h) {
+                           return dynamics_.attempt(p, from, to, h, ++serial_);
+                         });
+  r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::kinetic_energy() const {
+  system_.M.multiply(current_.v, scratch_, threads());
+  return 0.5 * current_.v.dot(scratch_);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::external_work_potential() const {
+  Vector f(num_dofs());
+  loads_.assemble(time(), f);
+  return f.dot(current_.u);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Vector Solver<E, Elastic, Plastic, Enrich>::reaction_forces() const {
+  Vector f(num_dofs()), fe(num_dofs()), r(num_dofs()), w(num_dofs());
+  body_.assemble(current_.u, f, nullptr, TangentKind::Projected, threads());
+  loads_.assemble(time(), fe);
+  system_.M.multiply(current_.a, r, threads());
+  r += f - fe;
+  if (settings_.rayleigh_mass != 0) {
+    system_.M.multiply(current_.v, w, threads());
+    r += settings_.rayleigh_mass * w;
+  }
+  if (settings_.rayleigh_stiffness != 0) {
+    BlockSymmetricMatrix K0 = body_.assembler().zero_matrix();
+    body_.assemble_rest_stiffness(K0);
+    K0.multiply(current_.v, w, threads());
+    r += settings_.rayleigh_stiffness * w;
+  }
+  for (Index i = 0; i < num_dofs(); ++i)
+    if (!system_.constrained(i)) r[i] = 0;
+  return r;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Vector Solver<E, Elastic, Plastic, Enrich>::internal_force() const {
+  Vector f(num_dofs());
+  body_.assemble(current_.u, f, nullptr, TangentKind::Projected, threads());
+  return f;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+SparseMatrix Solver<E, Elastic, Plastic, Enrich>::tangent() const {
+  BlockSymmetricMatrix K = body_.assembler().zero_matrix();
+  Vector f(num_dofs());
+  const bool exact = has_exact_tangent_v<Elastic> && settings_.newton.exact_tangent;
+  body_.assemble(current_.u, f, &K, exact ? TangentKind::Exact : TangentKind::Projected, threads());
+  return K.to_sparse();
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Vector Solver<E, Elastic, Plastic, Enrich>::von_mises_stress() const {
+  const auto s = element_stress();
+  Vector vm(static_cast<Index>(s.size()));
+  for (size_t e = 0; e < s.size(); ++e) vm[static_cast<Index>(e)] = von_mises(s[e]);
+  return vm;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
+  body_.rebuild();
+  const Index n = body_.num_dofs();
+  system_.rebuild(body_, settings_, constraints_.constrained_dofs());
+  system_.set_threads(threads());
+  loads_.build(mesh(), material().density, settings_.mass, n);
+  current_.grow(n);
+  work_.reset(n), trial_.reset(n);
+  dynamics_.resize(n);
+  scratch_.resize(n);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::constraints_changed() {
+  system_.set_constrained(body_, constraints_.constrained_dofs());
+  current_.acceleration_known = false;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename Loads<E>::Definition def, LoadCurve curve, std::string what) {
+  const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
+  loads_.build_last(mesh());
+  current_.acceleration_known = false;
+  return h;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::check_nodes(std::span<const Index> nodes, const char* what) const {
+  for (Index i : nodes)
+    if (i < 0 || i >= mesh().num_nodes())
+      fail<InvalidArgument>("{}: node {} out of range [0, {})", what, i, mesh().num_nodes());
+}
+
 }  // namespace plastifem
+
+#include <plastifem/solver/instantiations.hpp>

@@ -1,0 +1,5 @@
+// Explicit instantiation definitions of the common Solver types (solver/instantiations.hpp),
+// one source file per group so that the library builds in parallel.
+#include <plastifem/plastifem.hpp>
+
+#define PLASTIFEM_INSTANTIATE_SOLVER(E, M) template class plastifem::Solver<plastifem::E, plastifem::M>;

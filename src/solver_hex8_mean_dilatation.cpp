@@ -1,0 +1,6 @@
+#include "instantiate.hpp"
+PLASTIFEM_INSTANTIATE_SOLVER(Hex8, LinearMeanDilatation)
+PLASTIFEM_INSTANTIATE_SOLVER(Hex8, CorotationalMeanDilatation)
+PLASTIFEM_INSTANTIATE_SOLVER(Hex8, NeoHookeanMeanDilatation)
+PLASTIFEM_INSTANTIATE_SOLVER(Hex8, NeoHookeanAbaqusMeanDilatation)
+PLASTIFEM_INSTANTIATE_SOLVER(Hex8, StableNeoHookeanMeanDilatation)
