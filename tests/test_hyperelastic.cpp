@@ -7,6 +7,8 @@
 
 #include <fmt/core.h>
 
+#include <cmath>
+#include <numbers>
 #include <random>
 
 using namespace plastifem;
@@ -283,38 +285,113 @@ TEMPLATE_TEST_CASE("nearly incompressible (nu = 0.499) bending: no NaN, bounded 
   REQUIRE(solver.displacement().cwiseAbs().maxCoeff() < 10);
 }
 
+namespace {
+
+/// Load-weighted mean deflection f_ext . u / W of the bar [0, 10] x [0, 3] x [0, 3] clamped at
+/// x = 0 under gravity g_z, cells of size 1/r; `half`: y in [0, 1.5] with u_y = 0 on y = 1.5
+/// (the symmetric Hex8 grid's answer at half the cost). Statics in `steps` load increments.
+template <class M>
+Scalar bar_mean_deflection(int r, bool half, const Material& m, Scalar g_z, int steps) {
+  const Scalar width = half ? 1.5 : 3.0;
+  const auto mesh = bar_mesh<Hex8>(BoxSpec{10 * r, half ? 3 * r / 2 : 3 * r, 3 * r, Vec3(10, width, 3)});
+  Solver<Hex8, M> s(mesh, m);
+  s.fix(mesh.node_set("xmin"));
+  if (half) s.fix(mesh.node_set("ymax"), {false, true, false});
+  s.add_gravity(Vec3(0, 0, -g_z));
+  s.solve_static(steps);
+  return s.external_work_potential() / (g_z * m.density * 10 * width * 3);
+}
+
+/// Williams' exponent for a right-angle corner, one face clamped and one free (plane strain):
+/// the root in (1/2, 1) of kappa sin^2(l pi/2) = (kappa + 1)^2 / 4 - l^2, kappa = 3 - 4 nu, by
+/// Newton (test_locking.cpp explains and checks it: 0.7112 at nu = 0.3).
+Scalar williams_clamped_free(Scalar nu) {
+  const Scalar k = 3 - 4 * nu, c = std::numbers::pi / 2;
+  Scalar l = 0.7;
+  for (int it = 0; it < 50; ++it) {
+    const Scalar sn = std::sin(l * c);
+    const Scalar step = (k * sn * sn - (k + 1) * (k + 1) / 4 + l * l) / (k * c * std::sin(2 * l * c) + 2 * l);
+    l -= step;
+    if (std::abs(step) < 1e-15) break;
+  }
+  return l;
+}
+
+/// The continuum answer by Richardson extrapolation of the mean-dilatation sequence h = 1,
+/// 1/2, 1/4 with the clamp singularity's order p = 2 lambda (the energy converges like
+/// h^(2 lambda); test_locking.cpp shows the sequence following it, and the [long] case there
+/// confirms it with h = 1/8).
+struct Extrapolated {
+  Scalar d1, d2, d4, p, p_obs, value, estimated_error;
+};
+
+template <class M>
+Extrapolated extrapolate(const Material& m, Scalar g_z, int steps) {
+  Extrapolated e;
+  e.d1 = bar_mean_deflection<M>(1, false, m, g_z, steps);
+  e.d2 = bar_mean_deflection<M>(2, true, m, g_z, steps);
+  e.d4 = bar_mean_deflection<M>(4, true, m, g_z, steps);
+  e.p = 2 * williams_clamped_free(m.poisson);
+  e.p_obs = std::log2((e.d2 - e.d1) / (e.d4 - e.d2));
+  auto richardson = [&](Scalar p) { return e.d4 + (e.d4 - e.d2) / (std::pow(2.0, p) - 1); };
+  e.value = richardson(e.p);
+  // The exponent is the main uncertainty: the spread between theory's and the observed one.
+  e.estimated_error = std::abs(e.value - richardson(e.p_obs)) / e.value;
+  return e;
+}
+
+}  // namespace
+
 TEST_CASE("mean dilatation removes Neo-Hookean volumetric locking on Hex8, homogeneous states unchanged",
           "[hyper][locking]") {
   // Homogeneous uniaxial stretch: Jbar = J at every point, so the closed form still holds.
   check_uniaxial<NeoHookeanMeanDilatation>(1.5, neo_hookean_uniaxial(1.5, rubber));
   check_uniaxial<NeoHookeanAbaqusMeanDilatation>(0.7, abaqus_uniaxial(0.7, rubber));
-  // Static bending of the bar scene at nu = 0.499 under a tenth of gravity (small strain, so
-  // the Linear Tet10 reference on 20 x 6 x 6 applies to within the nonlinearity, ~1%).
-  auto tip = [](auto solver_tag, const auto& mesh) {
-    using S = decltype(solver_tag);
-    S s(mesh, Material{3000, 0.499, 1.0});
-    s.fix(mesh.node_set("xmin"));
-    s.add_gravity(Vec3(0, 0, -0.981));
-    s.solve_static(2);
-    Scalar uz = 0;
-    for (Index i : mesh.node_set("xmax")) uz += s.displacement(i).z();
-    return -uz / static_cast<Scalar>(mesh.node_set("xmax").size());
-  };
-  const auto hex = bar_mesh<Hex8>(10, 3, 3);
-  const auto ref_mesh = promote_to_tet10(box_tet4_kuhn({20, 6, 6, Vec3(10, 3, 3)}));
-  const Scalar ref = tip(Solver<Tet10, Linear>(ref_mesh, rubber), ref_mesh);
-  const Scalar full = tip(Solver<Hex8, NeoHookean>(hex, rubber), hex);
-  const Scalar mean = tip(Solver<Hex8, NeoHookeanMeanDilatation>(hex, rubber), hex);
-  const Scalar sfull = tip(Solver<Hex8, StableNeoHookean>(hex, rubber), hex);
-  const Scalar smean = tip(Solver<Hex8, StableNeoHookeanMeanDilatation>(hex, rubber), hex);
-  fmt::print("nu = 0.499 bar90 Hex8 tip / Tet10 reference: NeoHookean {:.3f}, mean dilatation {:.3f}; "
-             "StableNeoHookean {:.3f}, mean dilatation {:.3f}\n",
-             full / ref, mean / ref, sfull / ref, smean / ref);
-  // Full integration locks (the Linear study measured 0.36 x its nu = 0.3 flexibility);
-  // mean dilatation recovers the Linear mean-dilatation answer (0.93 of the reference here,
-  // the rest being Hex8's bending error on 3 cells through the depth).
-  REQUIRE(full / ref < 0.5);
-  REQUIRE(mean / ref > 0.85);
-  REQUIRE(sfull / ref < 0.5);
-  REQUIRE(smean / ref > 0.85);
+  // Static bending of the bar scene at nu = 0.499 under a tenth of gravity, against the
+  // continuum Neo-Hookean answer: Richardson extrapolation of the NeoHookeanMeanDilatation
+  // sequence (h = 1, 1/2, 1/4; the half bar by symmetry for the fine two). Quantity: the
+  // load-weighted mean deflection f.u / W (the volume average of -u_z).
+  const Material m{3000, 0.499, 1.0};
+  const Scalar g = 0.981;
+  const Extrapolated ref = extrapolate<NeoHookeanMeanDilatation>(m, g, 1);
+  // The linear continuum answer, extrapolated the same way: the two differ by the
+  // nonlinearity at this load alone (rotations ~0.03, bending strain ~3% at the clamp).
+  const Extrapolated lin = extrapolate<LinearMeanDilatation>(m, g, 1);
+  fmt::print("nu = 0.499 bar, g/10, mean deflection: NeoHookeanMeanDilatation h=1 {:.6f} h=1/2 {:.6f} h=1/4 {:.6f} "
+             "-> {:.6f}; order 2 lambda {:.3f}, observed {:.3f}; estimated error {:.1e}; linear continuum {:.6f} "
+             "({:+.1e})\n",
+             ref.d1, ref.d2, ref.d4, ref.value, ref.p, ref.p_obs, ref.estimated_error, lin.value,
+             lin.value / ref.value - 1);
+  // Measured 6.5e-5 (the observed order, 1.194, is theory's 1.190 already from h = 1 here);
+  // 0.5% is ten times below the margins asserted below. Newton stops at 1e-6 of the force
+  // scale: ~1e-6 relative in each level, against level differences of 2-4%.
+  REQUIRE(ref.estimated_error < 5e-3);
+  // Observed against theoretical order: the Neo-Hookean sequence sits on it (measured 0.3%
+  // apart); 10% rejects a smooth-solution rate (2) or a sequence not converging.
+  REQUIRE(std::abs(ref.p_obs / ref.p - 1) < 0.1);
+  // Nonlinearity at g/10: the linear continuum answer is 3.8e-4 above (measured; tension and
+  // compression sides nearly cancel in the deflection); 1% bounds an effect of the order of
+  // the clamp's bending strain.
+  REQUIRE(std::abs(lin.value / ref.value - 1) < 0.01);
+
+  const Scalar full = bar_mean_deflection<NeoHookean>(1, false, m, g, 2);
+  const Scalar mean = ref.d1;
+  const Scalar sfull = bar_mean_deflection<StableNeoHookean>(1, false, m, g, 2);
+  const Scalar smean = bar_mean_deflection<StableNeoHookeanMeanDilatation>(1, false, m, g, 2);
+  fmt::print("nu = 0.499 bar90 Hex8 mean deflection / continuum: NeoHookean {:.3f}, mean dilatation {:.3f}; "
+             "StableNeoHookean {:.3f}, mean dilatation {:.3f} (LinearMeanDilatation {:.3f})\n",
+             full / ref.value, mean / ref.value, sfull / ref.value, smean / ref.value, lin.d1 / ref.value);
+  // Full integration locks: a third of the continuum deflection (measured 0.324 for both,
+  // as Linear Hex8 in test_locking); 0.5 keeps it apart from mean dilatation's > 0.9.
+  REQUIRE(full / ref.value < 0.5);
+  REQUIRE(sfull / ref.value < 0.5);
+  // Mean dilatation recovers all but the scene mesh's own discretisation error (3 cells
+  // through the depth, the clamp singularity): LinearMeanDilatation 0.953, Stable 0.957,
+  // NeoHookean 0.932 (its psi_dev keeps a pointwise mu ln J volumetric stiffness, which the
+  // element mean does not relax). 0.9 leaves 3% margin under the lowest.
+  REQUIRE(mean / ref.value > 0.9);
+  REQUIRE(smean / ref.value > 0.9);
+  // And neither over-softens: below the continuum answer by more than its estimated error.
+  REQUIRE(mean < ref.value * (1 - ref.estimated_error));
+  REQUIRE(smean < ref.value * (1 - ref.estimated_error));
 }
