@@ -61,6 +61,11 @@ class Dynamics {
 
   /// n -> trial by one step of dt; the trial state gets `serial`. Throws SolverError on failure.
   StepReport attempt(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial) {
+    // A sub-step of a cut step can be smaller than any dt Solver::step accepts.
+    if (!std::isfinite(Newmark{p.settings.newmark.beta, p.settings.newmark.gamma, dt}.c0()))
+      fail<SolverError>("Newmark step at t = {}: dt = {} is too small (1 / (beta dt^2) overflows); the state is "
+                        "unchanged",
+                        n.t + dt, dt);
     if (p.settings.newmark.mode == NewmarkMode::RealTime) return realtime(p, n, trial, dt, serial);
     // At huge time steps (stiffness-dominated, dt omega >> 1) the constant-acceleration
     // predictor can start Newton far from the solution, where u_n is the better guess: the

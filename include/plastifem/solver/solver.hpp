@@ -373,6 +373,9 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
   if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
   if (!std::isfinite(current_.t + dt) || current_.t + dt == current_.t)
     fail<InvalidArgument>("time step dt = {} is lost in the round-off of t = {}", dt, current_.t);
+  if (const Scalar c0 = Newmark{settings_.newmark.beta, settings_.newmark.gamma, dt}.c0(); !std::isfinite(c0))
+    fail<InvalidArgument>("time step dt = {} is too small: the Newmark coefficient 1 / (beta dt^2) = {} overflows", dt,
+                          c0);
   auto p = parts();
   StepReport r = advance(current_, work_, trial_, dt, settings_.max_step_cuts,
                          [&](const StateType& from, StateType& to, Scalar h) {

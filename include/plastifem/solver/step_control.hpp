@@ -10,6 +10,8 @@
 // path or policy, and at whatever sub-step, the committed state has not been touched.
 #include <plastifem/solver/settings.hpp>
 
+#include <cmath>
+#include <cstdint>
 #include <string>
 
 namespace plastifem {
@@ -59,8 +61,9 @@ StepReport advance(StateT& current, StateT& work, StateT& trial, Scalar dt, int 
       substep(work, trial, dt / 2, 1, max_cuts, total, attempt);
       substep(work, trial, dt / 2, 1, max_cuts, total, attempt);
     } catch (const SolverError& e) {
-      fail<SolverError>("{} (also with the step cut into up to {} sub-steps: {})", first_failure.what(),
-                        std::uint64_t{1} << max_cuts, e.what());
+      // The last failure is always one of the smallest sub-steps, dt / 2^max_cuts.
+      fail<SolverError>("{} (also with the step cut into up to {} sub-steps of dt = {:.6g}: {})", first_failure.what(),
+                        std::uint64_t{1} << max_cuts, std::ldexp(dt, -max_cuts), e.what());
     }
     work.t = t_end;  // exactly, whatever the sub-steps' round-off
     current.swap(work);
