@@ -298,6 +298,7 @@ class Dynamics {
     o.min_iterations = 1;
     o.stagnation = true;
     o.constant_tangent = constant_tangent;
+    o.absolute_tolerance = 10 * p.system.rest_force_roundoff(p.body, p.threads);
     // Backtracking needs a descent direction for |r|, which only the exact Jacobian guarantees:
     // with the warped corotational tangent it mostly fails and costs force evaluations (bar720
     // Tet4 Corotational: 9.2 ms per Newton iteration against 4.8 ms without), so without the

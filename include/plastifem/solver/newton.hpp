@@ -48,6 +48,10 @@ struct NewtonOptions {
   /// successors are held to; a body held by one node under CG took |r| = 4.6e6 against
   /// |f_ext| = 0.02 as converged, relative to an intermediate iterate's |f_int| ~ 6e13).
   bool running_max_scale = true;
+  /// Also converged when |r| <= this: the round-off level of the force evaluation
+  /// (System::rest_force_roundoff), for a body at rest under no load, whose force scale is that
+  /// round-off itself (an unloaded Hex8 bar failed its fourth step: |r| = 1.9e-11, "relative 0.58").
+  Scalar absolute_tolerance = 0;
 };
 
 struct NewtonResult {
@@ -146,7 +150,7 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
     res.scale = std::max({o.running_max_scale ? res.scale : first_scale, p.scale(), Scalar(1e-30)});
     res.residual = rnorm;
     res.relative_residual = rnorm / res.scale;
-    if (it >= o.min_iterations && rnorm <= o.tolerance * res.scale) {
+    if (it >= o.min_iterations && (rnorm <= o.tolerance * res.scale || rnorm <= o.absolute_tolerance)) {
       res.converged = true;
       return res;
     }

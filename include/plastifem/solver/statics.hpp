@@ -145,6 +145,7 @@ class Statics {
     o.verify_one_solve = true;  // a linear model's one solve is checked against the tolerance
     o.line_search = search;
     o.length = p.body.size();
+    o.absolute_tolerance = 10 * p.system.rest_force_roundoff(p.body, p.threads);
     o.running_max_scale = false;  // the initial imbalance's and the current iterate's scale (NewtonOptions)
     const NewtonResult r = newton(prob, u_, o, EnergyArmijo{}, du_, u_new_);
     if (!r.converged)
