@@ -665,7 +665,7 @@ TEST_CASE("extremes 4: 100,000 undamped linear steps conserve energy to round-of
   }
   // Default CG: each step's solve stops at the inexact-Newton tolerance (a residual of at most
   // 1e-6 of the force scale), which does work on the step's motion: at most ~1e-6 of the energy
-  // per step, 1e-3 per 1000 steps (measured 5.7e-8: the errors mostly cancel).
+  // per step, 1e-3 per 1000 steps (measured 8.1e-8: the errors mostly cancel).
   const auto [drift, total] = energy_drift<Hex8>(100000, LinearSolverKind::ConjugateGradient);
   CHECK(drift < 1e-3);
   CHECK(std::abs(total) < 1e-2);
@@ -734,4 +734,25 @@ TEST_CASE("extremes 8: free flight: momentum to round-off, a spinning body's ang
 // TEST_CASE("extremes 2, default statics: E from 1e1 to 1e9", "[extremes][young]") {
 //   young_decades<Linear>(SolverSettings{}, 1, 9, "default");
 //   young_decades<Corotational>(SolverSettings{}, 1, 9, "default");
+// }
+
+// LIBRARY DEFECT (minor: a misreport), reported, test kept commented out until it is fixed:
+// include/plastifem/solver/newton.hpp, the stagnation exit after the line search (`if
+// (o.stagnation && s * norm(du) <= ...`): it does not first ask whether the new |r| already
+// meets the residual tolerance, so at small time steps, where the increment is below
+// increment_tolerance * (|u| + L), every step that converged is reported as
+// Convergence::Stagnated / StepReport::stagnated ("accepted on stagnation, not on the
+// tolerance"): bar90 Corotational under gravity, dt = 1e-4: relative residual 2.2e-7 (< 1e-6),
+// stagnated; dt = 1e-6: 2e-11, stagnated. A user who watches `stagnated` as a warning sees it
+// on every step.
+//
+// TEST_CASE("extremes 3, report: a step that meets the tolerance is not reported as stagnated", "[extremes][dt]") {
+//   const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+//   Solver<Hex8, Corotational> s(mesh, soft);
+//   s.fix(mesh.node_set("xmin"));
+//   s.add_gravity(Vec3(0, 0, -9.81));
+//   const StepReport r = s.step(1e-4);
+//   CHECK(r.relative_residual <= s.settings().newton.residual_tolerance);  // passes (2.2e-7)
+//   CHECK_FALSE(r.stagnated);                                             // fails
+//   CHECK(r.convergence == Convergence::Converged);                       // fails
 // }
