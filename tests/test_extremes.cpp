@@ -28,8 +28,8 @@
 //     conserved to round-off; a spinning corotational body keeps its angular momentum and
 //     energy within the trapezoidal rule's O((omega dt)^2).
 //
-// All eight run in ~10 s (Release, one core), so none is tagged [long]. A library defect found
-// while writing them is kept as a commented-out test at the end of the file.
+// All eight run in ~10 s (Release, one core), so none is tagged [long]. Two library defects found
+// while writing them are kept as commented-out tests at the end of the file.
 #include "catch.hpp"
 
 #include <plastifem/plastifem.hpp>
