@@ -1,33 +1,71 @@
 #!/usr/bin/env bash
 # plastifem set-up: installs missing Debian packages, configures, builds, then runs
 #   bash cmake/setup.sh example   the flagship example (writes VTU/PVD into build/out/)
-#   bash cmake/setup.sh test      the whole test suite through ctest
+#   bash cmake/setup.sh test      the test suite through ctest, without the cases tagged [long]
+#                                 (builds the tests only: ~10 min on 2 cores from scratch)
+#   bash cmake/setup.sh test-long the cases tagged [long] (long runs, fine meshes)
+#   bash cmake/setup.sh sanitize  a representative subset of the tests (every element, model and
+#                                 reader) built with AddressSanitizer + UndefinedBehaviorSanitizer
+#                                 into build-sanitize/
+#   bash cmake/setup.sh fuzz [s]  the mesh readers' libFuzzer targets, s seconds each (default 60;
+#                                 installs clang; fuzz/README.md)
+#   bash cmake/setup.sh build-time  what including the toolkit costs the compiler (README,
+#                                 "Build time"): CPU seconds and peak memory per translation unit
 #   bash cmake/setup.sh bench [step|static|policy] [options]
 #                                 a benchmark (tables + CSV into build/bench/): ms per Newmark
 #                                 step (default), per static solve, or the NoPlasticity /
 #                                 NoEnrichment overhead ratio
 #   bash cmake/setup.sh study     the accuracy-vs-cost study (docs/study.md): CSV into build/bench/,
 #                                 plot into docs/speed_accuracy.png (~7 min, single-threaded)
-# Environment: BUILD_DIR (default build), JOBS (default: number of cores).
+# Environment: BUILD_DIR (default build, or build-sanitize), JOBS (default: number of cores).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 what=${1:-test}
 build=${BUILD_DIR:-build}
+[ "$what" = sanitize ] && build=${BUILD_DIR:-build-sanitize}
 jobs=${JOBS:-$(nproc)}
+
+# apt-get install of whatever in "$@" is missing.
+install_missing() {
+  local missing=() p
+  for p in "$@"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    echo "setup: installing ${missing[*]}"
+    local sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  fi
+}
 
 # libsuitesparse-dev: CHOLMOD, the sparse direct solver for statics (optional for users of the
 # library, used by default here); libopenblas0-pthread: the BLAS its supernodes run on (12x
 # faster than the reference BLAS on bar5760 statics).
 packages=(g++ cmake make pkg-config libeigen3-dev libfmt-dev catch2 libsuitesparse-dev libopenblas0-pthread)
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "setup: installing ${missing[*]}"
-  sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+install_missing "${packages[@]}"
+
+# The sanitizer build: the test subset that instantiates every element (test_elements), every
+# elastic model on every element (test_point_law, test_state), every reader and writer (test_io,
+# fuzz regressions included), the mesh checks, assembly, linear solvers, the solver's steps,
+# grasping and the bad-input regressions. -O1 keeps it quick; Debug leaves Eigen's own
+# assertions on (index checks); any report stops the test.
+sanitize_tests=(test_elements test_mesh test_io test_assembly test_linear_solver test_point_law
+                test_state test_solver test_grasp test_defects)
+if [ "$what" = sanitize ]; then
+  san="-O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer"
+  cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="$san" \
+        -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
+        -DPLASTIFEM_BUILD_EXAMPLES=OFF -DPLASTIFEM_BUILD_BENCH=OFF
+  targets=()
+  for t in "${sanitize_tests[@]}"; do [ -f "tests/$t.cpp" ] && targets+=("$t"); done
+  cmake --build "$build" -j "$jobs" --target "${targets[@]}"
+  regex="^($(IFS='|'; echo "${targets[*]}")): "
+  # halt_on_error: the first report fails the test; leaks are reported too.
+  ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:strict_string_checks=1 \
+  UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+    ctest --test-dir "$build" --output-on-failure -j "$jobs" -R "$regex" -LE long
+  exit 0
 fi
 
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release
@@ -37,8 +75,18 @@ case "$what" in
     mkdir -p "$build/out"
     "$build/examples/cantilever" --out "$build/out" ;;
   test)
-    cmake --build "$build" -j "$jobs"
-    ctest --test-dir "$build" --output-on-failure -j "$jobs" ;;
+    cmake --build "$build" -j "$jobs" --target plastifem_tests
+    ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE long ;;
+  test-long)
+    cmake --build "$build" -j "$jobs" --target plastifem_tests
+    ctest --test-dir "$build" --output-on-failure -j "$jobs" -L long ;;
+  all)  # everything builds (tests, examples, benchmarks), warnings as errors
+    cmake --build "$build" -j "$jobs" ;;
+  fuzz)
+    install_missing clang libclang-rt-dev
+    bash fuzz/run.sh "${2:-60}" ;;
+  build-time)
+    bash bench/build_time.sh "$build" ;;
   bench)
     which=step; args=("${@:2}")
     case "${2:-}" in step|static|policy) which=$2; args=("${@:3}") ;; esac
@@ -51,12 +99,7 @@ case "$what" in
     mkdir -p "$build/bench"
     # One core throughout: the study's costs are single-threaded, CHOLMOD's BLAS included.
     OPENBLAS_NUM_THREADS=1 "$build/bench/study_accuracy" --csv "$build/bench/study_accuracy.csv" "${@:2}"
-    if ! /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
-      echo "setup: installing python3-matplotlib"
-      sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
-      $sudo apt-get update -qq
-      DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends python3-matplotlib
-    fi
+    install_missing python3-matplotlib
     /usr/bin/python3 docs/plot_study.py "$build/bench/study_accuracy.csv" docs/speed_accuracy.png ;;
-  *) echo "usage: bash cmake/setup.sh example|test|bench|study" >&2; exit 2 ;;
+  *) echo "usage: bash cmake/setup.sh example|test|test-long|sanitize|fuzz|build-time|all|bench|study" >&2; exit 2 ;;
 esac

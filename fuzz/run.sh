@@ -4,7 +4,7 @@
 #   fuzz/run.sh [seconds per target, default 60] [target ...]   (targets: gmsh vtu vtk_legacy)
 #
 # Environment: BUILD_DIR (default build-fuzz/ at the repository root, ignored by git), CXX
-# (default clang++-14), FUZZ_FLAGS (more libFuzzer options, e.g. -use_value_profile=1).
+# (default clang++-14, else clang++), FUZZ_FLAGS (more libFuzzer options, e.g. -use_value_profile=1).
 # Each target starts from the committed seeds in fuzz/corpus/<target>/ plus the working corpus
 # $BUILD_DIR/corpus/<target>/, where new inputs that grow coverage go (`fuzz/run.sh --merge`
 # minimises the committed seeds instead of fuzzing). Crashes, leaks and timeouts are written to
@@ -15,7 +15,7 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
 build=${BUILD_DIR:-$root/build-fuzz}
-cxx=${CXX:-clang++-14}
+cxx=${CXX:-$(command -v clang++-14 || command -v clang++ || echo clang++)}
 all_targets=(gmsh vtu vtk_legacy)
 
 merge=0

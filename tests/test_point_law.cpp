@@ -120,8 +120,8 @@ TEMPLATE_TEST_CASE("point laws: P = dpsi/dF and A = dP/dF by central differences
       law.evaluate(F, Mat3::Identity(), P, &A);
       struct Wrapped {
         const SmallStrainLaw& l;
-        Scalar evaluate(const Mat3& F, Mat3& P, Matrix9* A, TangentKind = TangentKind::Exact) const {
-          return l.evaluate(F, Mat3::Identity(), P, A);
+        Scalar evaluate(const Mat3& F_, Mat3& P_, Matrix9* A_, TangentKind = TangentKind::Exact) const {
+          return l.evaluate(F_, Mat3::Identity(), P_, A_);
         }
       };
       check_law_derivatives(Wrapped{law}, F, TangentKind::Exact, 1e-6);

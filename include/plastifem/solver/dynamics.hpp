@@ -343,7 +343,7 @@ class Dynamics {
   /// tangent's change over one step is far smaller than the dR/dx it omits anyway.
   template <class P>
   struct FrozenTangent : P {
-    explicit FrozenTangent(P& p) : P(p) {}
+    explicit FrozenTangent(P& problem) : P(problem) {}
     bool tangent_current() const { return true; }
   };
 

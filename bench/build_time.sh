@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# What including plastifem costs the compiler: CPU seconds (user + system) and peak memory of
+# one translation unit, for what a simulator's files typically contain.
+#
+#   bash bench/build_time.sh [build dir, default build]     (or: bash cmake/setup.sh build-time)
+#
+#   umbrella         #include <plastifem/plastifem.hpp> and nothing used
+#   solver           one Solver<Hex8, Corotational>: a bar, a fixed end, gravity, a step, a
+#                    static solve, header-only (the TU instantiates and optimises everything)
+#   solver+compiled  the same file against plastifem::compiled (-DPLASTIFEM_USE_COMPILED: the
+#                    common Solver types are extern templates, compiled once in the library)
+#   readers          the umbrella plus <plastifem/mesh/io/io.hpp> and one read_gmsh<Hex8>
+#
+# Flags: CXX (default g++), OPT (default -O2), the include paths of the build's CMake cache
+# (Eigen, SuiteSparse) and OpenMP; results as a table and as CSV in <build>/bench/build_time.csv.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build=${1:-build}
+cxx=${CXX:-g++}
+opt=${OPT:--O2}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+eigen=/usr/include/eigen3
+if [ -f "$build/CMakeCache.txt" ]; then
+  d=$(sed -n 's/^Eigen3_DIR:PATH=//p' "$build/CMakeCache.txt")
+  [ -n "$d" ] && [ -f "$d/Eigen3Config.cmake" ] && eigen=$(sed -n 's/.*EIGEN3_INCLUDE_DIRS "\([^"]*\)".*/\1/p' "$d/Eigen3Config.cmake" | head -1)
+  [ -d "$eigen" ] || eigen=/usr/include/eigen3
+fi
+flags=(-std=c++20 "$opt" -DNDEBUG -fopenmp -I"$root/include" -isystem "$eigen")
+
+cat >"$work/umbrella.cpp" <<'EOF'
+#include <plastifem/plastifem.hpp>
+int main() { return 0; }
+EOF
+cat >"$work/solver.cpp" <<'EOF'
+#include <plastifem/plastifem.hpp>
+#include <fmt/core.h>
+int main() {
+  using namespace plastifem;
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 2, 8);
+  Solver<Hex8, Corotational> solver(mesh, Material{1e5, 0.3, 1000});
+  solver.fix(select_nodes(mesh, [](const Vec3& x) { return x.z() < 1e-9; }));
+  solver.add_gravity(Vec3(0, -9.81, 0));
+  const StepReport r = solver.step(0.01);
+  solver.solve_static();
+  fmt::print("{} {}\n", r.newton_iterations, solver.displacement().norm());
+}
+EOF
+cat >"$work/readers.cpp" <<'EOF'
+#include <plastifem/plastifem.hpp>
+#include <plastifem/mesh/io/io.hpp>
+int main(int argc, char** argv) {
+  if (argc > 1) return static_cast<int>(plastifem::io::read_gmsh<plastifem::Hex8>(argv[1]).num_elements() % 2);
+  return 0;
+}
+EOF
+
+measure() {  # name, extra flags...: prints "name seconds megabytes"
+  local name=$1; shift
+  /usr/bin/time -f "%U %S %M" -o "$work/$name.time" "$cxx" "${flags[@]}" "$@" -c "$work/${name%%+*}.cpp" -o "$work/$name.o"
+  read -r user sys kb <"$work/$name.time"
+  awk -v n="$name" -v u="$user" -v s="$sys" -v k="$kb" 'BEGIN { printf "%s %.1f %.0f\n", n, u + s, k / 1024 }'
+}
+
+results=$( {
+  measure umbrella
+  measure solver
+  measure solver+compiled -DPLASTIFEM_USE_COMPILED
+  measure readers
+} )
+mkdir -p "$build/bench"
+{
+  echo "unit,cpu_seconds,peak_mb"
+  echo "$results" | tr ' ' ','
+} >"$build/bench/build_time.csv"
+echo "$("$cxx" --version | head -1), $opt"
+printf '%-18s %12s %10s\n' "translation unit" "CPU seconds" "peak MB"
+echo "$results" | while read -r n s m; do printf '%-18s %12s %10s\n' "$n" "$s" "$m"; done
+echo "CSV: $build/bench/build_time.csv"
