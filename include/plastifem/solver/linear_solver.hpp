@@ -218,11 +218,12 @@ void BasicLinearSolver<Unused>::factorise_cholmod() {
     analysed_ = true;
   }
   cholmod_->factorize(csc_);
-  // LL^T fails at the first non-positive pivot; a positive but tiny one is caught by
-  // rcond = min diag(L) / max diag(L), whose square is LDLT's pivot ratio (same 1e-12 bound).
+  // LL^T fails at the first non-positive pivot; a positive but tiny one is caught by the
+  // pivot ratio. For an LL^T factor cholmod_rcond returns (min diag(L) / max diag(L))^2,
+  // already LDLT's min D / max D (D = diag(L)^2): the same 1e-12 bound applies to it as it is.
   if (cholmod_->info() != Eigen::Success) singular(-1, 1, "CHOLMOD pivot ratio (not positive definite)");
-  const Scalar rcond = cholmod_->rcond();
-  if (!(rcond * rcond > 1e-12)) singular(rcond * rcond, 1, "CHOLMOD pivot ratio");
+  const Scalar pivot_ratio = cholmod_->rcond();
+  if (!(pivot_ratio > 1e-12)) singular(pivot_ratio, 1, "CHOLMOD pivot ratio");
 #endif
 }
 

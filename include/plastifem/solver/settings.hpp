@@ -103,8 +103,9 @@ inline void validate_settings(const SolverSettings& s) {
     fail<InvalidArgument>("Newton needs finite tolerances (residual > 0, increment >= 0) and at least one iteration, "
                           "got {}, {} and {}",
                           s.newton.residual_tolerance, s.newton.increment_tolerance, s.newton.max_iterations);
-  for (const LinearSolverSettings* l : {&s.linear, &s.static_linear})
-    if (!(l->tolerance > 0 && l->tolerance < 1) || l->max_iterations < 1)
+  for (const LinearSolverSettings* l : {&s.linear, &s.static_linear})  // a direct solve uses neither
+    if (!std::isfinite(l->tolerance) ||
+        (l->kind == LinearSolverKind::ConjugateGradient && (!(l->tolerance > 0 && l->tolerance < 1) || l->max_iterations < 1)))
       fail<InvalidArgument>("CG needs a tolerance in (0, 1) and at least one iteration, got {} and {}", l->tolerance,
                             l->max_iterations);
   if (s.max_step_cuts < 0 || s.max_step_cuts > 30)
