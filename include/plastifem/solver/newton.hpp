@@ -176,7 +176,17 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
       }
       rnorm = p.residual(u, false);
       tangent_at_u = false;
-      continue;  // the test above decides; a linear model is then solved again from there
+      // The test above decides; a linear model is then solved again from there, unless the
+      // correction no longer changes u (the residual is at its round-off floor).
+      if (o.stagnation && !(rnorm <= o.tolerance * std::max(res.scale, p.scale()) || rnorm <= o.absolute_tolerance) &&
+          norm(du) <= o.increment_tolerance * (norm(u) + o.length) && rnorm <= std::sqrt(o.tolerance) * res.scale) {
+        res.residual = rnorm;
+        res.relative_residual = rnorm / res.scale;
+        res.convergence = Convergence::Stagnated;
+        res.converged = true;
+        return res;
+      }
+      continue;
     }
     Scalar r_new;
     bool found;
@@ -196,7 +206,10 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
       tangent_at_u = true;  // keep the tangent: this iteration converged fast
       stale = true;
     }
-    if (o.stagnation && s * norm(du) <= o.increment_tolerance * (norm(u) + o.length) &&
+    // Stagnation: the increment no longer changes u and |r| is near the tolerance. A residual
+    // that already meets the tolerance goes round the loop instead, to be reported converged.
+    const bool meets_tolerance = rnorm <= o.tolerance * std::max(res.scale, p.scale()) || rnorm <= o.absolute_tolerance;
+    if (o.stagnation && !meets_tolerance && s * norm(du) <= o.increment_tolerance * (norm(u) + o.length) &&
         rnorm <= std::sqrt(o.tolerance) * res.scale) {
       res.residual = rnorm;
       res.relative_residual = rnorm / res.scale;
