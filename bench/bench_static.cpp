@@ -31,10 +31,10 @@ namespace {
 
 struct Row {
   std::string scene, element, model, solver;
-  Index dofs;
-  double median_ms;
-  int newton, linear;
-  Scalar tip_uz;
+  Index dofs = 0;
+  double median_ms = 0;
+  int newton = 0, linear = 0;
+  Scalar tip_uz = 0;
 };
 
 template <class E, class Model>
