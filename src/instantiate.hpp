@@ -3,3 +3,4 @@
 #include <plastifem/plastifem.hpp>
 
 #define PLASTIFEM_INSTANTIATE_SOLVER(E, M) template class plastifem::Solver<plastifem::E, plastifem::M>;
+#define PLASTIFEM_INSTANTIATE_PLASTIC_SOLVER(E, M, P) template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P>;

@@ -81,10 +81,28 @@ class Discretization {
         threads);
     return std::isfinite(energy()) && f.allFinite();
   }
-  /// The tangent at rest (u = 0): K0, positive semi-definite, for Rayleigh damping.
+  /// The tangent at rest (u = the rest displacement): K0, positive semi-definite, for Rayleigh
+  /// damping.
   void assemble_rest_stiffness(BlockSymmetricMatrix& K0) const {
-    Vector f(num_dofs()), zero = Vector::Zero(num_dofs());
-    assemble(zero, f, &K0, TangentKind::Projected, 1);
+    Vector f(num_dofs());
+    assemble(rest_displacement(), f, &K0, TangentKind::Projected, 1);
+  }
+  /// The displacement at which the body is at rest: zero, or x - X once plastic flow has moved
+  /// the rest shapes to a material mesh x (plastic/plasticity.hpp). Constant-tangent models use
+  /// it (f = K (u - u_rest)).
+  const Vector& rest_displacement() const {
+    if (rest_u_.size() != num_dofs()) {
+      const Index old = static_cast<Index>(rest_u_.size());
+      rest_u_.conservativeResize(num_dofs());
+      rest_u_.tail(num_dofs() - old).setZero();
+    }
+    return rest_u_;
+  }
+  bool has_rest_displacement() const { return has_rest_u_; }
+  void set_rest_displacement(const Vector& u) {
+    rest_u_.setZero(num_dofs());
+    rest_u_.head(u.size()) = u;
+    has_rest_u_ = true;
   }
   /// Strain energy of the last assembly.
   Scalar energy() const {
@@ -144,6 +162,8 @@ class Discretization {
   Vector X_;  ///< rest positions of the nodes
   Scalar size_ = 1;
   mutable std::vector<Scalar> element_energy_;  ///< W_e of the last assembly (line search, validity)
+  mutable Vector rest_u_;                       ///< rest displacement (zero without plastic flow)
+  bool has_rest_u_ = false;
 };
 
 }  // namespace plastifem

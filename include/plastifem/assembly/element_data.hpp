@@ -65,12 +65,15 @@ class ElementDataTable {
   static ShapeCheck check_rest_shape(const ElementNodes<E>& X) { return check_shape<E>(X); }
 
   /// Gives element e the rest shape X (its nodes' positions in its own rest space). Throws
-  /// InvalidArgument, with the table unchanged, if X fails the rest-shape test.
-  void set_rest_shape(Index e, const ElementNodes<E>& X) {
-    const ShapeCheck c = check_rest_shape(X);
-    if (!c.valid())
-      fail<InvalidArgument>("element {}: rest shape rejected, scaled det J = {:.3g} at {} {}", e,
-                            c.min_scaled_jacobian, c.at_corner ? "corner" : "quadrature point", c.where);
+  /// InvalidArgument, with the table unchanged, if X fails the rest-shape test (unless the
+  /// caller has `checked` it already: the plastic update checks what it proposes).
+  void set_rest_shape(Index e, const ElementNodes<E>& X, bool checked = false) {
+    if (!checked) {
+      const ShapeCheck c = check_rest_shape(X);
+      if (!c.valid())
+        fail<InvalidArgument>("element {}: rest shape rejected, scaled det J = {:.3g} at {} {}", e,
+                              c.min_scaled_jacobian, c.at_corner ? "corner" : "quadrature point", c.where);
+    }
     Data d = Model::template prepare<E>(X, material_);
     const std::uint32_t old = shape_of_[e];
     if (users_[old] == 1) {

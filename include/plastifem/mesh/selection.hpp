@@ -3,6 +3,7 @@
 #include <plastifem/mesh/mesh.hpp>
 
 #include <algorithm>
+#include <optional>
 #include <unordered_map>
 
 namespace plastifem {
@@ -106,6 +107,40 @@ Surface<E> extract_surface(const Mesh<E>& mesh) {
   s.connectivity.reserve(s.faces.size());
   for (const FaceRef& f : s.faces) s.connectivity.push_back(mesh.face_nodes(f));
   return s;
+}
+
+/// Where a point lies in a mesh: an element and the point's reference coordinates in it.
+struct PointLocation {
+  Index element = -1;
+  Vec3 xi = Vec3::Zero();
+};
+
+/// Whether reference coordinates lie in the reference element (within tol).
+template <FiniteElement E>
+bool in_reference_element(const Vec3& xi, Scalar tol = 1e-10) {
+  if constexpr (E::num_vertices == 8) return (xi.array().abs() <= 1 + tol).all();
+  else return (xi.array() >= -tol).all() && xi.sum() <= 1 + tol;
+}
+
+/// The element containing X in the rest configuration (the first found, for a point on a face
+/// shared by several) and X's reference coordinates in it, by Newton on x(xi) = X from the
+/// element's centre; nothing if no element contains X (within tol relative to the element).
+template <FiniteElement E>
+std::optional<PointLocation> locate_point(const Mesh<E>& mesh, const Vec3& X, Scalar tol = 1e-9) {
+  for (Index e = 0; e < mesh.num_elements(); ++e) {
+    const ElementNodes<E> Xe = mesh.element_nodes(e);
+    const Vec3 lo = Xe.rowwise().minCoeff(), hi = Xe.rowwise().maxCoeff();
+    const Scalar h = (hi - lo).maxCoeff();
+    if (((X - lo).array() < -tol * h).any() || ((X - hi).array() > tol * h).any()) continue;
+    Vec3 xi = E::reference_nodes().leftCols(E::num_vertices).rowwise().mean();
+    for (int it = 0; it < 30; ++it) {
+      const Vec3 r = Xe * E::shape(xi) - X;
+      if (r.norm() <= 1e-14 * h) break;
+      xi -= jacobian<E>(Xe, xi).inverse() * r;
+    }
+    if ((Xe * E::shape(xi) - X).norm() <= tol * h && in_reference_element<E>(xi, tol)) return PointLocation{e, xi};
+  }
+  return std::nullopt;
 }
 
 }  // namespace plastifem

@@ -6,6 +6,7 @@ namespace plastifem {
 struct NoPlasticity {
   static constexpr const char* name = "NoPlasticity";
   static constexpr bool active = false;
+  struct Params {};
 };
 
 }  // namespace plastifem

@@ -41,18 +41,18 @@ struct SolverParts {
   int threads;
 };
 
-template <FiniteElement E, class Elastic, class PlasticState>
+template <FiniteElement E, class Elastic>
 class Dynamics {
  public:
   using Parts = SolverParts<E, Elastic>;
-  using StateT = State<PlasticState>;
+  using StateT = MotionState;  // the plastic part is the solver's (plastic/)
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   static constexpr bool constant_tangent = Elastic::constant_tangent;
 
   /// Sizes the scratch vectors for n dofs (no allocation in the step loop afterwards).
   void resize(Index n) {
     for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_, &damping_,
-                      &path_.u, &path_.v, &path_.a, &first_increment_})
+                      &path_.u, &path_.v, &path_.a, &first_increment_, &u_rel_})
       x->setZero(n);
     linearisation_serial_ = 0;
   }
@@ -112,7 +112,8 @@ class Dynamics {
   }
 
   /// f = f_int(u), and K(u) into the system's K when asked. Constant-tangent models: K
-  /// assembled once per rest-shape epoch, f_int = K u (Linear: K0 (x - X0) = K u). false if some
+  /// assembled once per rest-shape epoch, f_int = K (u - u_rest) (Linear: K0 (x - X0) = K u
+  /// while the rest shapes are the mesh's; u_rest = x - X after plastic flow). false if some
   /// element cannot be evaluated.
   bool evaluate(Parts& p, const Vector& u, Vector& f, bool with_tangent, TangentKind kind) {
     if constexpr (constant_tangent) {
@@ -122,7 +123,12 @@ class Dynamics {
         p.system.set_constant_tangent_current(epoch);
         p.system.forget_coefficients();
       }
-      p.system.K.multiply(u, f, p.threads);
+      if (p.body.has_rest_displacement()) {  // plastic flow moved the rest shapes: f = K (u - u_rest)
+        u_rel_ = u - p.body.rest_displacement();
+        p.system.K.multiply(u_rel_, f, p.threads);
+      } else {
+        p.system.K.multiply(u, f, p.threads);
+      }
       return f.allFinite();
     } else {
       return p.body.assemble(u, f, with_tangent ? &p.system.K : nullptr, kind, p.threads);
@@ -364,7 +370,6 @@ class Dynamics {
     trial.warm_dt = dt;
     trial.t = n.t + dt;
     trial.acceleration_known = true;
-    trial.plastic = n.plastic;
     trial.serial = serial;
   }
 
@@ -467,7 +472,7 @@ class Dynamics {
     return rep;
   }
 
-  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, damping_, first_increment_;
+  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, damping_, first_increment_, u_rel_;
   PathValues path_;
   std::uint64_t linearisation_serial_ = 0;  ///< the state f_lin_ and the system's K belong to (0: none)
 };

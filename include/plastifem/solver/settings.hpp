@@ -1,6 +1,7 @@
 #pragma once
 // What a user sets (SolverSettings) and what a step or static solve reports (StepReport).
 #include <plastifem/assembly/mass.hpp>
+#include <plastifem/plastic/params.hpp>
 #include <plastifem/solver/linear_solver.hpp>
 
 #include <cmath>
@@ -64,6 +65,7 @@ struct StepReport {
   int load_steps = 1;            ///< statics: increments used (after automatic cutting)
   int substeps = 1;              ///< dynamics: Newmark sub-steps used (> 1 after automatic step cutting)
   int predictor_retries = 0;     ///< dynamics: sub-steps redone from u_n after failing from the predictor
+  PlasticReport plastic;         ///< what the plastic updates of the step (its sub-steps, increments) did
   double wall_ms = 0;
 };
 

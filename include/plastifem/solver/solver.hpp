@@ -16,7 +16,8 @@
 #include <plastifem/core/log.hpp>
 #include <plastifem/enrichment/none.hpp>
 #include <plastifem/mesh/selection.hpp>
-#include <plastifem/plastic/none.hpp>
+#include <plastifem/plastic/plastic.hpp>
+#include <plastifem/plastic/plasticity.hpp>
 #include <plastifem/solver/statics.hpp>
 #include <plastifem/solver/step_control.hpp>
 
@@ -29,16 +30,35 @@ namespace plastifem {
 template <FiniteElement E, class Elastic, class Plastic = NoPlasticity, class Enrich = NoEnrichment>
   requires ElasticModel<Elastic, E>
 class Solver {
-  static_assert(std::is_same_v<Plastic, NoPlasticity>, "plastic policies other than NoPlasticity arrive with seed 000");
+  static_assert(PlasticModel<Plastic>, "the plastic policy must be NoPlasticity, VertexBlended or CellCentered "
+                                       "(plastic/plastic.hpp: the PlasticModel concept)");
   static_assert(std::is_same_v<Enrich, NoEnrichment>, "enrichment policies other than NoEnrichment arrive with seed 001");
+
+  struct NoPlasticEngine {};
+  static constexpr bool plastic = Plastic::active;
+  template <class P, bool = P::active>
+  struct PlasticParts {
+    using State = NoPlasticState;
+    using Engine = NoPlasticEngine;
+  };
+  template <class P>
+  struct PlasticParts<P, true> {
+    using State = PlasticTable;
+    using Engine = plastic::Plasticity<E, Elastic, P::per_vertex_rotation>;
+  };
 
  public:
   using Element = E;
   using ElasticModel = Elastic;
-  using StateType = State<NoPlasticState>;
+  using PlasticPolicy = Plastic;
+  using PlasticParamsType = typename Plastic::Params;
+  using StateType = State<typename PlasticParts<Plastic>::State>;
   static constexpr int N = E::num_nodes;
 
-  Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings = {});
+  /// `plastic_params`: the plastic policy's parameters (PlasticParams for VertexBlended and
+  /// CellCentered; validated).
+  Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings = {},
+         PlasticParamsType plastic_params = {});
 
   // --- problem set-up ---------------------------------------------------------------------
   const Mesh<E>& mesh() const { return body_.mesh(); }
@@ -68,6 +88,10 @@ class Solver {
   LoadHandle add_nodal_force(std::span<const Index> nodes, const Vec3& f, LoadCurve curve = {});
   /// forces[k] on nodes[k], scaled by `curve(t)`.
   LoadHandle add_nodal_forces(std::span<const Index> nodes, std::span<const Vec3> forces, LoadCurve curve = {});
+  /// A point force f at the rest position X (inside the body or on its surface), as the
+  /// consistent nodal loads f N_a(xi) of the element containing X: e.g. a force at the centre
+  /// of a face. Throws InvalidArgument if no element contains X.
+  LoadHandle add_point_force(const Vec3& X, const Vec3& f, LoadCurve curve = {});
   /// Body force per unit mass (gravity): the consistent nodal loads rho int N_a g dV with the
   /// consistent mass, m_aa g with the lumped one, so that a free body falls at exactly g.
   LoadHandle add_gravity(const Vec3& g, LoadCurve curve = {});
@@ -98,6 +122,16 @@ class Solver {
   void set_state(const Vector& u, const Vector& v, Scalar time = 0);
   /// Uses `a` as the acceleration at the current time instead of solving for equilibrium.
   void set_acceleration(const Vector& a);
+
+  // --- plasticity (seed 000; plastic/) -----------------------------------------------------
+  const PlasticParamsType& plastic_params() const { return plastic_params_; }
+  /// New plastic parameters mid-run: thresholds keep their hardening, shifted by the change of
+  /// the initial yield values (plastic/plasticity.hpp).
+  void set_plastic_params(const PlasticParamsType& p);
+  /// The material mesh: every node's rest position, one node per column (the mesh itself
+  /// without plasticity, or before any flow). Write x - X as a point field to see it in
+  /// ParaView (examples/plastic_stretch.cpp).
+  Eigen::Matrix3Xd material_positions() const;
 
   // --- solving ----------------------------------------------------------------------------
   /// Static equilibrium f_int(u) = f_ext(t) at the current time, by Newton in `load_steps`
@@ -159,23 +193,33 @@ class Solver {
     if (!v.allFinite()) fail<InvalidArgument>("{} must be finite, got ({}, {}, {})", what, v.x(), v.y(), v.z());
   }
 
+  /// Brings the element data to state s's rest shapes (plastic flow); forgets what was derived
+  /// from the old ones.
+  void sync_rest_shapes(const StateType& s);
+  /// The plastic update after a converged (sub-)step of dt into state s (dynamics).
+  void plastic_update(StateType& s, Scalar dt, StepReport& r);
+
   SolverSettings settings_;
   Discretization<E, Elastic> body_;
   System<E, Elastic> system_;
   Constraints constraints_;
   Loads<E> loads_;
-  Dynamics<E, Elastic, NoPlasticState> dynamics_;
-  Statics<E, Elastic, NoPlasticState> statics_;
+  Dynamics<E, Elastic> dynamics_;
+  Statics<E, Elastic> statics_;
   StateType current_, work_, trial_;
+  PlasticParamsType plastic_params_;
+  [[no_unique_address]] typename PlasticParts<Plastic>::Engine plastic_;
+  std::vector<char> anchor_;  ///< nodes with a constrained dof: the material mesh stays put there
   std::uint64_t serial_ = 0;
   mutable Vector scratch_;
 };
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
-Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings)
+Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings,
+                                            PlasticParamsType plastic_params)
     : settings_(validated(settings)), body_(mesh, material.validated()), system_(settings_),
-      constraints_(mesh.num_nodes()) {
+      constraints_(mesh.num_nodes()), plastic_params_(plastic_params) {
   if (const auto& unused = body_.mesh().report().unused_nodes; !unused.empty()) {
     std::string ids;
     for (size_t k = 0; k < unused.size() && k < 20; ++k) ids += fmt::format("{}{}", k ? ", " : "", unused[k]);
@@ -185,6 +229,10 @@ Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material&
   }
   current_.reset(body_.num_dofs());
   current_.serial = ++serial_;
+  if constexpr (plastic) {
+    plastic_params_.validate();
+    plastic_.init(body_, plastic_params_, current_.plastic);
+  }
   rebuild();
 }
 
@@ -283,6 +331,24 @@ LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_nodal_forces(std::span<const
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
+LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_point_force(const Vec3& X, const Vec3& f, LoadCurve curve) {
+  check_finite(X, "point force position");
+  check_finite(f, "point force");
+  const auto where = locate_point(mesh(), X);
+  if (!where)
+    fail<InvalidArgument>("point force: ({}, {}, {}) is in no element of the mesh (rest configuration)", X.x(), X.y(),
+                          X.z());
+  const auto Nxi = E::shape(where->xi);
+  const auto& c = mesh().element(where->element);
+  std::vector<Index> nodes;
+  std::vector<Vec3> forces;
+  for (int a = 0; a < N; ++a)
+    if (Nxi[a] != 0) nodes.push_back(c[a]), forces.push_back(Nxi[a] * f);
+  return add_load({typename Loads<E>::NodalForces{std::move(nodes), std::move(forces)}}, std::move(curve), "point force");
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_gravity(const Vec3& g, LoadCurve curve) {
   check_finite(g, "gravity");
   return add_load({typename Loads<E>::BodyForce{g}}, std::move(curve), "gravity");
@@ -360,7 +426,28 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
   auto p = parts();
   work_.assign(current_);
   dynamics_.invalidate();  // the system's K is statics' from here
-  StepReport r = statics_.solve(p, work_, load_steps, [](StateType&) {});
+  PlasticReport flow;
+  StepReport r;
+  try {
+    // After each converged increment the plastic flow, over the share of static_time its load
+    // fraction stands for; the element data then follow the working state.
+    r = statics_.solve(p, work_, load_steps, [&](MotionState& s, Scalar fraction) {
+      if constexpr (plastic) {
+        const auto before = work_.plastic.version;
+        flow.add(plastic_.update(body_, s.u, fraction * plastic_params_.static_time, plastic_params_, work_.plastic,
+                                 ++serial_, threads(), anchor_));
+        sync_rest_shapes(work_);
+        return work_.plastic.version != before;
+      } else {
+        (void)s, (void)fraction;
+        return false;
+      }
+    });
+  } catch (...) {
+    sync_rest_shapes(current_);  // the element data back to the committed rest shapes
+    throw;
+  }
+  r.plastic = flow;
   work_.serial = ++serial_;
   current_.swap(work_);
   return r;
@@ -377,10 +464,22 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
     fail<InvalidArgument>("time step dt = {} is too small: the Newmark coefficient 1 / (beta dt^2) = {} overflows", dt,
                           c0);
   auto p = parts();
-  StepReport r = advance(current_, work_, trial_, dt, settings_.max_step_cuts,
-                         [&](const StateType& from, StateType& to, Scalar h) {
-                           return dynamics_.attempt(p, from, to, h, ++serial_);
-                         });
+  StepReport r;
+  try {
+    r = advance(current_, work_, trial_, dt, settings_.max_step_cuts, [&](const StateType& from, StateType& to, Scalar h) {
+      sync_rest_shapes(from);
+      StepReport sr = dynamics_.attempt(p, from, to, h, ++serial_);
+      if constexpr (plastic) {
+        to.plastic = from.plastic;  // (reuses to's storage)
+        plastic_update(to, h, sr);
+      }
+      return sr;
+    });
+  } catch (...) {
+    sync_rest_shapes(current_);  // a sub-step may have moved the element data: back to the committed state
+    throw;
+  }
+  sync_rest_shapes(current_);
   r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
@@ -453,6 +552,7 @@ Vector Solver<E, Elastic, Plastic, Enrich>::von_mises_stress() const {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
+  if constexpr (plastic) plastic_.pattern_changed();
   body_.rebuild();
   const Index n = body_.num_dofs();
   system_.rebuild(body_, settings_, constraints_.constrained_dofs());
@@ -468,6 +568,11 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::constraints_changed() {
   system_.set_constrained(body_, constraints_.constrained_dofs());
+  if constexpr (plastic) {
+    anchor_.assign(mesh().num_nodes(), 0);
+    for (Index i = 0; i < mesh().num_nodes(); ++i)
+      anchor_[i] = system_.constrained(3 * i) || system_.constrained(3 * i + 1) || system_.constrained(3 * i + 2);
+  }
   current_.acceleration_known = false;
 }
 
@@ -478,6 +583,41 @@ LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename Loads<E>::Defi
   loads_.build_last(mesh());
   current_.acceleration_known = false;
   return h;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::sync_rest_shapes(const StateType& s) {
+  if constexpr (plastic) {
+    if (plastic_.sync(body_, s.plastic)) dynamics_.invalidate();  // the real-time linearisation was of the old shapes
+  } else {
+    (void)s;
+  }
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::plastic_update(StateType& s, Scalar dt, StepReport& r) {
+  if constexpr (plastic)
+    r.plastic = plastic_.update(body_, s.u, dt, plastic_params_, s.plastic, ++serial_, threads(), anchor_);
+  else (void)s, (void)dt, (void)r;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::set_plastic_params(const PlasticParamsType& p) {
+  if constexpr (plastic) {
+    p.validate();
+    plastic_.change_params(plastic_params_, p, current_.plastic);
+  }
+  plastic_params_ = p;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::material_positions() const {
+  if constexpr (plastic) return Eigen::Map<const Eigen::Matrix3Xd>(current_.plastic.rest.data(), 3, mesh().num_nodes());
+  else return mesh().nodes();
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>

@@ -12,7 +12,7 @@
 //   warm_start the first Newton increment of the last step and its dt (the next step's CG
 //              start), and in real-time mode the one before (linear extrapolation of the two,
 //              when both steps had the current dt: 7-13% fewer CG iterations);
-//   plastic    the plastic policy's per-element table (empty for NoPlasticity);
+//   plastic    the plastic policy's per-element table (empty for NoPlasticity; plastic/table.hpp);
 //   serial     an identity: a derived quantity computed from this state (the real-time step's
 //              linearisation) is valid while the committed state carries the same serial.
 #include <plastifem/assembly/block_matrix.hpp>
@@ -28,15 +28,16 @@ struct NoPlasticState {
   friend bool operator==(const NoPlasticState&, const NoPlasticState&) { return true; }
 };
 
-template <class PlasticState = NoPlasticState>
-struct State {
+/// The motion part of a State: everything a Newmark step or a static solve changes. Dynamics
+/// and Statics work on it alone, so that they are compiled once per (element, model) whatever
+/// the plastic policy.
+struct MotionState {
   Vector u, v, a;
   Scalar t = 0;
   bool acceleration_known = false;  ///< a is the acceleration at t (else: solved from equilibrium)
   Vector load;
   Vector warm_start, warm_start_previous;
   Scalar warm_dt = 0, warm_dt_previous = 0;
-  [[no_unique_address]] PlasticState plastic;
   std::uint64_t serial = 0;
 
   Index num_dofs() const { return static_cast<Index>(u.size()); }
@@ -62,30 +63,43 @@ struct State {
     if (warm_start_previous.size() > 0) extend(warm_start_previous);
   }
   /// Assignment that reuses this state's storage (no allocation when the sizes match).
-  void assign(const State& o) {
+  void assign_motion(const MotionState& o) {
     u = o.u, v = o.v, a = o.a, t = o.t, acceleration_known = o.acceleration_known;
     load = o.load, warm_start = o.warm_start, warm_start_previous = o.warm_start_previous;
-    warm_dt = o.warm_dt, warm_dt_previous = o.warm_dt_previous, plastic = o.plastic, serial = o.serial;
+    warm_dt = o.warm_dt, warm_dt_previous = o.warm_dt_previous, serial = o.serial;
   }
-  void swap(State& o) noexcept {
+  void swap_motion(MotionState& o) noexcept {
     u.swap(o.u), v.swap(o.v), a.swap(o.a), load.swap(o.load), warm_start.swap(o.warm_start);
     warm_start_previous.swap(o.warm_start_previous);
     std::swap(warm_dt, o.warm_dt), std::swap(warm_dt_previous, o.warm_dt_previous);
     std::swap(t, o.t), std::swap(acceleration_known, o.acceleration_known), std::swap(serial, o.serial);
+  }
+  /// Every field equal, bit for bit (NaN payloads aside).
+  bool same_motion(const MotionState& y) const {
+    auto same = [](const Vector& p, const Vector& q) {
+      return p.size() == q.size() && std::equal(p.data(), p.data() + p.size(), q.data());
+    };
+    return same(u, y.u) && same(v, y.v) && same(a, y.a) && t == y.t && acceleration_known == y.acceleration_known &&
+           same(load, y.load) && same(warm_start, y.warm_start) && same(warm_start_previous, y.warm_start_previous) &&
+           warm_dt == y.warm_dt && warm_dt_previous == y.warm_dt_previous && serial == y.serial;
+  }
+};
+
+template <class PlasticState = NoPlasticState>
+struct State : MotionState {
+  [[no_unique_address]] PlasticState plastic;
+
+  void assign(const State& o) {
+    assign_motion(o);
+    plastic = o.plastic;
+  }
+  void swap(State& o) noexcept {
+    swap_motion(o);
     using std::swap;
     swap(plastic, o.plastic);
   }
   /// Every field equal, bit for bit (NaN payloads aside): what the rollback tests compare.
-  friend bool operator==(const State& x, const State& y) {
-    auto same = [](const Vector& p, const Vector& q) {
-      return p.size() == q.size() && std::equal(p.data(), p.data() + p.size(), q.data());
-    };
-    return same(x.u, y.u) && same(x.v, y.v) && same(x.a, y.a) && x.t == y.t &&
-           x.acceleration_known == y.acceleration_known && same(x.load, y.load) && same(x.warm_start, y.warm_start) &&
-           same(x.warm_start_previous, y.warm_start_previous) && x.warm_dt == y.warm_dt &&
-           x.warm_dt_previous == y.warm_dt_previous &&
-           x.plastic == y.plastic && x.serial == y.serial;
-  }
+  friend bool operator==(const State& x, const State& y) { return x.same_motion(y) && x.plastic == y.plastic; }
 };
 
 }  // namespace plastifem

@@ -11,17 +11,20 @@
 
 namespace plastifem {
 
-template <FiniteElement E, class Elastic, class PlasticState>
+template <FiniteElement E, class Elastic>
 class Statics {
  public:
   using Parts = SolverParts<E, Elastic>;
-  using StateT = State<PlasticState>;
+  using StateT = MotionState;  // the plastic part is the solver's (plastic/)
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   static constexpr bool constant_tangent = Elastic::constant_tangent;
 
   /// `state` -> static equilibrium at state.t, in `load_steps` increments (or more, after
-  /// cutting). After every converged increment `increment_done(state)` runs (the plastic
-  /// update). Throws SolverError if an increment fails after 10 cuts.
+  /// cutting). After every converged increment `increment_done(state, fraction)` runs, with the
+  /// fraction of the load interval the increment covered (the plastic update), and returns
+  /// whether it changed the rest shapes; if the last one did, the state is brought back to
+  /// equilibrium at the full load with the new rest shapes by one more Newton solve. Throws
+  /// SolverError if an increment fails after 10 cuts.
   template <class AfterIncrement>
   StepReport solve(Parts& p, StateT& state, int load_steps, AfterIncrement&& increment_done) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -43,6 +46,7 @@ class Statics {
     rep.newton_iterations = rep.linear_iterations = 0;
     Scalar done = 0, step = 1.0 / load_steps;
     int cuts = 0, increments = 0;
+    bool rest_changed = false;
     while (done < 1 - 1e-12) {
       const Scalar s = std::min(1.0, done + step);
       u_ = state.u;
@@ -58,7 +62,7 @@ class Statics {
         rep.linear_converged = rep.linear_converged && r.linear_converged;
         state.u = u_;
         state.load = f_ext_;
-        increment_done(state);
+        rest_changed = increment_done(state, s - done);
         done = s;
         ++increments;
       } catch (const SolverError& err) {
@@ -66,6 +70,16 @@ class Statics {
           fail<SolverError>("static solve failed at load fraction {:.4g} after {} cuts: {}", s, cuts, err.what());
         step /= 2;
       }
+    }
+    if (rest_changed) {
+      // Equilibrium with the rest shapes the last increment's flow left (no further flow).
+      u_ = state.u;
+      const NewtonResult r = increment(p, state.t);
+      rep.newton_iterations += r.iterations;
+      rep.linear_iterations += r.linear_iterations;
+      rep.residual = r.residual;
+      rep.relative_residual = r.relative_residual;
+      state.u = u_;
     }
     state.v.setZero();
     state.a.setZero();

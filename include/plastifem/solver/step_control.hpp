@@ -38,6 +38,7 @@ void substep(StateT& work, StateT& trial, Scalar dt, int depth, int max_cuts, St
   total.stagnated = total.stagnated || r.stagnated;
   total.linear_converged = total.linear_converged && r.linear_converged;
   total.linear_relative_residual = r.linear_relative_residual;
+  total.plastic.add(r.plastic);
   total.substeps += 1;
 }
 

@@ -143,17 +143,17 @@ class System {
     return K0;
   }
 
-  /// |f_int| at the rest state (u = 0): the round-off level of a force evaluation on this mesh
-  /// (kernels that form F = x G from absolute positions leave ~10 eps |X| of strain: 1e-11 on
-  /// the Hex8 bar of E = 3000; zero for Linear). Newton's absolute floor: a body at rest under
-  /// no load has nothing but this round-off for a force scale. Assembled once per rest-shape
-  /// epoch and dof map.
+  /// |f_int| at the rest state (u = 0, or the rest displacement after plastic flow): the
+  /// round-off level of a force evaluation on this mesh (kernels that form F = x G from absolute
+  /// positions leave ~10 eps |X| of strain: 1e-11 on the Hex8 bar of E = 3000; zero for Linear).
+  /// Newton's absolute floor: a body at rest under no load has nothing but this round-off for a
+  /// force scale. Assembled once per dof map: plastic flow changes the rest shapes every step it
+  /// flows, by far too little to change the round-off level of the mesh.
   Scalar rest_force_roundoff(const Body& body, int threads) {
-    if (roundoff_epoch_ != body.data().epoch() || roundoff_dofs_ != body.num_dofs()) {
+    if (roundoff_dofs_ != body.num_dofs()) {
       Vector f(body.num_dofs());
-      const bool ok = body.assemble(Vector::Zero(body.num_dofs()), f, nullptr, TangentKind::Projected, threads);
+      const bool ok = body.assemble(body.rest_displacement(), f, nullptr, TangentKind::Projected, threads);
       roundoff_ = ok && f.allFinite() ? f.norm() : 0;
-      roundoff_epoch_ = body.data().epoch();
       roundoff_dofs_ = body.num_dofs();
     }
     return roundoff_;
@@ -173,7 +173,7 @@ class System {
   ConstrainedBlocks blocks_;
   std::array<Scalar, 3> coefficients_{0, 0, 0};
   bool K_constant_valid_ = false;
-  std::uint64_t K_epoch_ = 0, k0_epoch_ = ~std::uint64_t{0}, roundoff_epoch_ = ~std::uint64_t{0};
+  std::uint64_t K_epoch_ = 0, k0_epoch_ = ~std::uint64_t{0};
   Index roundoff_dofs_ = -1;
   Scalar roundoff_ = 0;
 };

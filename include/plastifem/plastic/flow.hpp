@@ -1,0 +1,357 @@
+#pragma once
+// The plastic flow of one element in one step (seed 000, section 3): from the element's rest
+// shape X (the material mesh at its nodes) and its current nodes x, the element's plastic
+// target shape z, and its updated yield thresholds. Formulas as reconstructed from the paper
+// (its PDF text garbles them), with the equation numbers of the paper:
+//
+// Deformation gradients (eq. 1). F = x dN/dX at reference points: F_o at the element centre,
+// F_a at each node a, and the blended gradients Fbar_a = (F_a + F_o) / 2 (the paper's vertex
+// blending, its appendix: a third-order accurate "half-gradient" deformation). Plastic stretch
+// flows at the nodes from Fbar_a for the small-strain models (Linear, Corotational,
+// CorotationalPerElement and their mean-dilatation forms), at the Gauss points from F_g for the
+// hyperelastic ones; a node then takes the plastic stretch of its nearest Gauss point (the
+// average of equally near ones: Tet10's mid-edge nodes). Plastic rotation flows at the nodes
+// from Fbar_a for every model (the paper left it out for the hyperelastic model for speed).
+//
+// Stress. The second Piola-Kirchhoff stress S: the hyperelastic model's own, S = F^-1 P(F);
+// for the small-strain models the St Venant-Kirchhoff stress of the Green strain,
+// S = lambda tr(E) I + 2 mu E, E = (F^T F - I) / 2 ("we compute C = F^T F, E = (C - I)/2 and
+// the second Piola-Kirchhoff stress"): equal to their stress to first order in the strain,
+// and invariant under rotation, so that a rigidly rotated Linear element does not yield on its
+// ghost stress. Only the deviator enters: s = k dev(S) - alpha, with k the stress scale (1 by
+// default) and alpha the kinematic centre, and its von Mises norm |s| = sqrt(3/2 s:s). (The
+// paper writes sqrt(3/2 sigma:sigma); von Mises is the norm of the deviator, and with the
+// whole tensor a hydrostatic pressure would yield.)
+//
+// Plastic stretch (eq. 4). With F = U D V^T (here from C = F^T F = V D^2 V^T, which needs no U
+// and is exact also for reflections):
+//     Sp = V (D / det(D)^(1/3))^gamma V^T,   gamma = min(nu dt (|s| - tau) / |s|, 1)  if |s| > tau,
+// i.e. Sp = exp(gamma dev(log U)): a fraction gamma of the isochoric part of the stretch U.
+// gamma is continuous at the yield surface (zero there), so the flow does not depend on how
+// closely Newton converged.
+//
+// Plastic rotation (eq. 5, vertex-blended). With Fbar_a = Rbar_a Ubar_a and F_o = R_o U_o, the
+// distortion at a vertex is the geodesic distance phi_a = Phi(Rbar_a, R_o) = |log(Rbar_a R_o^T)|,
+// and where it exceeds the rotation yield a fraction of the vertex rotation becomes plastic,
+//     eta_a = min(nu_R dt (phi_a - tau_R) / phi_a, 1),   Rp_a = Rbar_a^eta_a,   Re_a = Rbar_a^(1 - eta_a),
+// the same rule as eq. 4's gamma for the stretch: rate times relative overstress. Cell-centered
+// (eq. 6): one rotation per element from the largest vertex distortion,
+//     phi~ = max_a phi_a,   eta~ = min(nu_R dt (phi~ - tau_R) / phi~, 1),   Rp_o = R_o^eta~.
+// The element's material turns towards its world orientation (rigidly for cell-centered, vertex
+// by vertex, so distorting the element, for vertex-blended), and the fused material mesh
+// (plastic/fusion.hpp) takes the turns of neighbouring elements against each other as the
+// plastic twist or bend. The paper divides by phi + Phi(I, R_o) instead of phi: every element
+// then turns by about the same angle, nu_R dt (phi - tau_R), whatever its rotation, which fuses
+// to a rigid rotation of the material mesh (measured: a clamped bar twisted by 1.5 rad and
+// released kept 0.065 rad of twist, all of it at the clamp; with phi alone it keeps 0.9 rad
+// with cell-centered rotation). A rigid motion has phi = 0: no flow. Where a body both rotates
+// rigidly and yields in part, the yielding part turns its material towards the rigid rotation
+// too: the paper's assumption, which surgery allows, is that the anatomy does not spin freely.
+// Both rules are capped (PlasticParams::max_step_rotation per step, max_total_rotation
+// accumulated, the paper's "maximal per-element rotation capped below pi"), each cap counted.
+//
+// Hardening. Isotropic: tau += kappa gamma |s|, tau_R += kappa eta phi. Kinematic (reconstructed
+// so that it has the units of a stress, the paper's "alpha <- alpha + kappa gamma (sigma -
+// alpha)/|sigma - alpha|" does not): alpha += kappa_k gamma (k dev(S) - alpha).
+//
+// Rest-shape update (eq. 7-8). The plastic increment Fp = Rp Sp (the right factors of
+// F = Re Rp Se Sp, eq. 3) maps the rest shape about its centre c = X N(centre):
+//     z_a = c + Rp_a Sp_a (X_a - c)
+// (the paper's y_q <- y_q + Sp_q u_q with u_q the non-rigid displacement, read as the plastic
+// part of the displacement, (Sp - I)(X_q - c): with Sp = I nothing must move). The accumulated
+// rotation map Pi <- Pi Rp (eq. 8) is kept per vertex or per element.
+//
+// Volume restitution (eq. 9). det Sp = det Rp = 1, but per-node increments change the volume;
+// with beta = vol(z) / vol(original element) (exact volumes, element/element.hpp):
+//     z_a <- c + (1 + (1 - beta) min(r dt, 1/3)) (z_a - c),   r = PlasticParams::volume_restitution,
+// the paper's y <- y + (y - o)(1 - beta) dt for small dt (r = 1), never overshooting for large dt.
+//
+// Safeguard. If z would have a smallest scaled Jacobian (element/element.hpp, check_shape) below
+// PlasticParams::min_rest_quality times the element's original one (and below that of X),
+// plasticity is switched off for the element: it keeps X and goes on elastically ("our
+// implementation switches off plasticity before an element is inverted").
+#include <plastifem/core/rotation.hpp>
+#include <plastifem/core/symmetric_eigen.hpp>
+#include <plastifem/elastic/elastic.hpp>
+#include <plastifem/plastic/params.hpp>
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <type_traits>
+
+namespace plastifem {
+
+/// Whether an elastic model is one of the hyperelastic family (plastic stretch at Gauss points).
+template <class M>
+struct is_hyperelastic : std::false_type {};
+template <class Energy, Volumetric V>
+struct is_hyperelastic<Hyperelastic<Energy, V>> : std::true_type {};
+template <class M>
+inline constexpr bool is_hyperelastic_v = is_hyperelastic<M>::value;
+
+namespace plastic {
+
+/// Sp = exp(gamma dev(log U)) with U^2 = C = F^T F (eq. 4). false (Sp untouched) if C is not
+/// positive definite (a collapsed point).
+inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
+  const Mat3 C = F.transpose() * F;
+  Vec3 l;
+  Mat3 V;
+  symmetric_eigen<3>(C, l, V);
+  if (!(l.minCoeff() > 1e-24 * l.maxCoeff()) || !l.allFinite()) return false;
+  const Vec3 d = 0.5 * l.array().log().matrix();  // log of the principal stretches
+  const Scalar mean = d.sum() / 3;
+  const Vec3 p = (gamma * (d.array() - mean)).exp().matrix();
+  Sp = V * p.asDiagonal() * V.transpose();
+  return true;
+}
+
+/// The deviator of the flow stress S at F (see the file comment); false where it is undefined
+/// (the hyperelastic energies with ln J at J <= 0).
+template <class Elastic>
+bool deviatoric_flow_stress(const typename Elastic::Law& law, const Material& m, const Mat3& F, Mat3& dev) {
+  Mat3 S;
+  if constexpr (is_hyperelastic_v<Elastic>) {
+    Mat3 P;
+    if (!std::isfinite(law.evaluate(F, P, nullptr))) return false;
+    const Scalar J = F.determinant();
+    if (!(std::abs(J) > 0)) return false;
+    S = detail::cofactor(F).transpose() * P / J;  // F^-1 P
+    S = 0.5 * (S + S.transpose());
+  } else {
+    const Mat3 E = 0.5 * (F.transpose() * F - Mat3::Identity());
+    S = 2 * m.mu() * E;  // the lambda tr(E) I part has no deviator
+  }
+  dev = S - S.trace() / 3 * Mat3::Identity();
+  return dev.allFinite();
+}
+
+/// |s| = sqrt(3/2 s:s).
+inline Scalar von_mises_norm(const Mat3& s) { return std::sqrt(1.5 * s.squaredNorm()); }
+
+/// A symmetric deviator packed as 6 numbers (xx, yy, zz, xy, xz, yz) and back.
+inline void pack(const Mat3& s, Scalar* p) {
+  p[0] = s(0, 0), p[1] = s(1, 1), p[2] = s(2, 2), p[3] = s(0, 1), p[4] = s(0, 2), p[5] = s(1, 2);
+}
+inline Mat3 unpack(const Scalar* p) {
+  Mat3 s;
+  s << p[0], p[3], p[4], p[3], p[1], p[5], p[4], p[5], p[2];
+  return s;
+}
+
+/// Element-type constants of the flow: where the flow points are, and which Gauss points are
+/// nearest to each node.
+template <FiniteElement E, bool Gauss>
+struct FlowPoints {
+  static constexpr int N = E::num_nodes;
+  static constexpr int Q = decltype(E::template quadrature<E::stiffness_degree>())::size;
+  static constexpr int size = Gauss ? Q : N;
+  std::array<Vec3, size> xi;              ///< reference coordinates of the flow points
+  std::array<Eigen::Matrix<Scalar, N, 3>, N + 1> dN_nodes;  ///< dN/dxi at the nodes and (last) the centre
+  std::array<Eigen::Matrix<Scalar, N, 3>, Q> dN_gauss;      ///< dN/dxi at the Gauss points
+  Eigen::Matrix<Scalar, N, 1> N_centre;
+  std::array<std::array<int, 4>, N> nearest{};  ///< Gauss flow: the Gauss points nearest to each node
+  std::array<int, N> num_nearest{};
+
+  FlowPoints() {
+    const auto Xref = E::reference_nodes();
+    const auto q = E::template quadrature<E::stiffness_degree>();
+    const Vec3 c = reference_centre<E>();
+    for (int a = 0; a < N; ++a) dN_nodes[a] = E::gradient(Xref.col(a));
+    dN_nodes[N] = E::gradient(c);
+    N_centre = E::shape(c);
+    for (int g = 0; g < Q; ++g) dN_gauss[g] = E::gradient(q.points[g]);
+    for (int k = 0; k < size; ++k) xi[k] = Gauss ? Vec3(q.points[k]) : Vec3(Xref.col(k));
+    for (int a = 0; a < N; ++a) {
+      Scalar best = std::numeric_limits<Scalar>::max();
+      for (int g = 0; g < Q; ++g) best = std::min(best, (Vec3(q.points[g]) - Xref.col(a)).norm());
+      for (int g = 0; g < Q; ++g)
+        if ((Vec3(q.points[g]) - Xref.col(a)).norm() <= best * (1 + 1e-9) && num_nearest[a] < 4)
+          nearest[a][num_nearest[a]++] = g;
+    }
+  }
+};
+
+/// F = (x dN) (X dN)^{-1} for the reference gradient dN of one point.
+template <FiniteElement E>
+Mat3 gradient_at(const ElementNodes<E>& X, const ElementNodes<E>& x, const Eigen::Matrix<Scalar, E::num_nodes, 3>& dN) {
+  const Mat3 J = X * dN, j = x * dN;
+  return j * J.inverse();
+}
+
+/// The per-element entries of the plastic table an update reads and writes (pointers into it).
+struct ElementPlasticEntries {
+  Scalar* tau;       ///< one per flow point
+  Scalar* alpha;     ///< 6 per flow point, or null (no kinematic hardening)
+  Scalar* tau_R;     ///< one per node (vertex-blended) or one (cell-centered)
+  Scalar* rotation;  ///< 3 (rotation vector of Pi) per node or one set of 3
+};
+
+/// What one element's flow did.
+enum class FlowResult {
+  Unchanged,  ///< nothing flowed, no restitution due: z and the entries untouched
+  Changed,    ///< z is the new rest shape, the entries are updated
+  Refused,    ///< the safeguard refused z (it would degenerate): switch the element off
+};
+
+/// One element's flow: see the file comment.
+template <FiniteElement E, class Elastic, bool PerVertexRotation>
+class ElementFlow {
+ public:
+  static constexpr int N = E::num_nodes;
+  static constexpr bool gauss = is_hyperelastic_v<Elastic>;
+  using Points = FlowPoints<E, gauss>;
+  static constexpr int P = Points::size;
+  static constexpr int NR = PerVertexRotation ? N : 1;
+
+  /// `X`, `x`: rest and current nodes; `V0`: the element's original volume, `beta` its rest
+  /// volume over V0, `q0` its original shape quality (check_shape).
+  static FlowResult run(const Points& pts, const typename Elastic::Law& law, const Material& m,
+                        const PlasticParams& prm, Scalar dt, const ElementNodes<E>& X, const ElementNodes<E>& x,
+                        Scalar V0, Scalar beta, Scalar q0, const ElementPlasticEntries& en, const ElementPlasticEntries& out,
+                        ElementNodes<E>& z, PlasticReport& rep) {
+    const bool stretch = prm.stretch_active(), rotate = prm.rotation_active() && en.tau_R;
+    const Mat3 F_o = gradient_at<E>(X, x, pts.dN_nodes[N]);
+    std::array<Mat3, N> Fbar;
+    const bool need_vertices = rotate || !gauss;
+    if (need_vertices)
+      for (int a = 0; a < N; ++a) Fbar[a] = 0.5 * (gradient_at<E>(X, x, pts.dN_nodes[a]) + F_o);
+
+    // --- plastic stretch at the flow points (eq. 4) and hardening
+    std::array<Scalar, P> gamma{}, tau_new{};
+    std::array<Mat3, P> Sp_point, dev_scaled;
+    Sp_point.fill(Mat3::Identity());
+    dev_scaled.fill(Mat3::Zero());
+    bool flowed = false;
+    // Below these a stress or a distortion is the round-off of F (a rigid motion), not a flow:
+    // a strain of 1e-12, a rotation of 1e-9 rad (polar decompositions are accurate to ~1e-15).
+    const Scalar stress_floor = 1e-12 * prm.stress_scale * 2 * m.mu(), rotation_floor = 1e-9;
+    if (stretch) {
+      for (int k = 0; k < P; ++k) {
+        const Mat3 F = gauss ? gradient_at<E>(X, x, pts.dN_gauss[k]) : Fbar[k];
+        Mat3 dev;
+        if (!deviatoric_flow_stress<Elastic>(law, m, F, dev)) {
+          ++rep.undefined_points;
+          continue;
+        }
+        dev_scaled[k] = prm.stress_scale * dev;
+        const Mat3 s = en.alpha ? Mat3(dev_scaled[k] - unpack(en.alpha + 6 * k)) : dev_scaled[k];
+        const Scalar vm = von_mises_norm(s);
+        if (!(vm > en.tau[k]) || vm <= stress_floor) continue;
+        Scalar g = prm.flow_rate * dt * (vm - en.tau[k]) / vm;
+        if (g >= 1) g = 1, ++rep.gamma_clamped;
+        if (!isochoric_stretch_power(F, g, Sp_point[k])) {
+          ++rep.undefined_points;
+          continue;
+        }
+        gamma[k] = g;
+        tau_new[k] = en.tau[k] + prm.hardening * g * vm;
+        flowed = true;
+        ++rep.points_yielded;
+        rep.max_gamma = std::max(rep.max_gamma, g);
+      }
+    }
+
+    // --- plastic rotation (eq. 5 or 6)
+    std::array<Mat3, NR> Rp;
+    std::array<Scalar, NR> tauR_new{};
+    std::array<Vec3, NR> pi_new;
+    pi_new.fill(Vec3::Zero());
+    std::array<bool, NR> turned{};
+    bool rotated = false;
+    if (rotate) {
+      const Mat3 R_o = rotation_of(F_o);
+      std::array<Mat3, N> Rbar;
+      std::array<Scalar, N> phi;
+      for (int a = 0; a < N; ++a) {
+        Rbar[a] = rotation_of(Fbar[a]);
+        phi[a] = geodesic_distance(Rbar[a], R_o);
+      }
+      // Rp = R^eta for the rotation R (angle ph for the yield test), capped.
+      auto flow_rotation = [&](int r, const Mat3& R, Scalar ph) {
+        Rp[r].setIdentity();
+        if (!(ph > en.tau_R[r]) || ph <= rotation_floor) return;
+        const Scalar eta = std::min(prm.rotation_flow_rate * dt * (ph - en.tau_R[r]) / ph, Scalar(1));
+        Vec3 w = eta * rotation_log(R);
+        if (const Scalar angle = w.norm(); angle > prm.max_step_rotation) {
+          w *= prm.max_step_rotation / angle;
+          ++rep.rotation_clamped;
+        }
+        const Mat3 step = rotation_exp(w);
+        const Vec3 pi = rotation_log(rotation_exp(Vec3(en.rotation[3 * r], en.rotation[3 * r + 1], en.rotation[3 * r + 2])) * step);
+        if (pi.norm() > prm.max_total_rotation) {
+          ++rep.rotation_clamped;
+          return;
+        }
+        Rp[r] = step;
+        pi_new[r] = pi;
+        turned[r] = true;
+        tauR_new[r] = en.tau_R[r] + prm.hardening * eta * ph;  // kappa eta phi (eta before the cap)
+        rotated = true;
+        ++rep.rotations_yielded;
+        rep.max_rotation = std::max(rep.max_rotation, w.norm());
+      };
+      if constexpr (PerVertexRotation) {
+        for (int a = 0; a < N; ++a) flow_rotation(a, Rbar[a], phi[a]);
+      } else {
+        Scalar phi_max = 0;
+        for (int a = 0; a < N; ++a) phi_max = std::max(phi_max, phi[a]);
+        flow_rotation(0, R_o, phi_max);
+      }
+    }
+
+    // --- volume restitution need (eq. 9)
+    const bool restore = prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance;
+    if (!flowed && !rotated && !restore) return FlowResult::Unchanged;
+
+    // --- the target shape (eq. 7), then eq. 9
+    const Vec3 c = X * pts.N_centre;
+    for (int a = 0; a < N; ++a) {
+      Mat3 Sp = Mat3::Identity();
+      if (flowed) {
+        if constexpr (gauss) {
+          Mat3 sum = Mat3::Zero();
+          int n = 0;
+          for (int j = 0; j < pts.num_nearest[a]; ++j)
+            if (const int g = pts.nearest[a][j]; gamma[g] > 0) sum += Sp_point[g], ++n;
+          if (n > 0) Sp = (sum + (pts.num_nearest[a] - n) * Mat3::Identity()) / pts.num_nearest[a];
+        } else {
+          if (gamma[a] > 0) Sp = Sp_point[a];
+        }
+      }
+      const Mat3& R = Rp[PerVertexRotation ? a : 0];
+      z.col(a) = c + (rotated ? Mat3(R * Sp) : Sp) * (X.col(a) - c);
+    }
+    if (prm.volume_restitution > 0) {
+      const Scalar b = element_volume<E>(z) / V0;
+      if (flowed || rotated || std::abs(1 - b) > prm.volume_tolerance) {
+        const Scalar s = 1 + (1 - b) * std::min(prm.volume_restitution * dt, Scalar(1) / 3);
+        z = (s * (z.colwise() - c)).colwise() + c;
+      }
+    }
+
+    // --- safeguard: no degenerate rest shape
+    const Scalar q_new = check_shape<E>(z).min_scaled_jacobian;
+    if (!(q_new >= prm.min_rest_quality * q0) && !(q_new >= check_shape<E>(X).min_scaled_jacobian))
+      return FlowResult::Refused;
+
+    // --- accepted: the element's new entries into `out` (all of them)
+    for (int k = 0; k < P; ++k) {
+      out.tau[k] = gamma[k] > 0 ? tau_new[k] : en.tau[k];
+      if (en.alpha) {
+        const Mat3 alpha = unpack(en.alpha + 6 * k);
+        pack(gamma[k] > 0 ? Mat3(alpha + prm.kinematic_hardening * gamma[k] * (dev_scaled[k] - alpha)) : alpha,
+             out.alpha + 6 * k);
+      }
+    }
+    for (int r = 0; r < NR && en.tau_R; ++r) {
+      out.tau_R[r] = turned[r] ? tauR_new[r] : en.tau_R[r];
+      for (int i = 0; i < 3; ++i) out.rotation[3 * r + i] = turned[r] ? pi_new[r][i] : en.rotation[3 * r + i];
+    }
+    return FlowResult::Changed;
+  }
+};
+
+}  // namespace plastic
+}  // namespace plastifem

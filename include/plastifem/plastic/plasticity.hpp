@@ -1,0 +1,264 @@
+#pragma once
+// Plasticity<E, Elastic, PerVertexRotation>: the plastic update of a whole body after a
+// converged (sub-)step, and the link between the plastic table (in the State) and the elastic
+// models' per-element data (in the Discretization).
+//
+// update(): from the committed displacement u and the table, every element's flow
+// (plastic/flow.hpp) in parallel, then the fusion of the changed elements' proposals into the
+// material mesh (plastic/fusion.hpp), then a check of the fused rest shapes. An element whose
+// proposal or fused shape would degenerate has its plasticity switched off and the fusion is
+// redone without it (up to three rounds; after that the whole update is dropped and counted).
+// The table changes only at the very end, and only if something changed: a step with no flow
+// leaves it bit for bit as it was. Nothing here is evaluated inside a force or residual: the
+// flow runs once per converged (sub-)step, so it does not depend on how many Newton iterations
+// the step took.
+//
+// sync(): re-prepares the element data of the elements whose rest nodes differ from the table's
+// (copy-on-write per element, assembly/element_data.hpp), and hands the body the rest
+// displacement x - X (for constant-tangent models, f = K (u - (x - X))). A failed or cut step
+// can leave the data at a sub-step's table; the solver syncs back to the committed one.
+#include <plastifem/assembly/discretization.hpp>
+#include <plastifem/plastic/flow.hpp>
+#include <plastifem/plastic/fusion.hpp>
+#include <plastifem/plastic/params.hpp>
+#include <plastifem/plastic/table.hpp>
+
+#include <optional>
+#include <vector>
+
+namespace plastifem::plastic {
+
+/// Volume of a rest shape, exact for the element's own geometry with the fewest points: det J
+/// of a trilinear hex has per-variable degree 2 (2x2x2 Gauss), of a quadratic tet degree 3.
+template <FiniteElement E>
+Scalar exact_volume(const ElementNodes<E>& X) {
+  constexpr int degree = E::num_vertices == 8 ? 2 : 3 * (E::order - 1);
+  const auto q = E::template quadrature<degree>();
+  Scalar v = 0;
+  for (int k = 0; k < q.size; ++k) v += q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
+  return v;
+}
+
+template <FiniteElement E, class Elastic, bool PerVertexRotation>
+class Plasticity {
+ public:
+  using Flow = ElementFlow<E, Elastic, PerVertexRotation>;
+  using Body = Discretization<E, Elastic>;
+  static constexpr int N = E::num_nodes;
+  static constexpr int P = Flow::P;    ///< flow points per element
+  static constexpr int NR = Flow::NR;  ///< rotation entries per element
+
+  /// Sizes the table for `body` (rest = the mesh, thresholds from `prm`) and this update's
+  /// work space; factorises nothing yet.
+  void init(const Body& body, const PlasticParams& prm, PlasticTable& table) {
+    const Mesh<E>& mesh = body.mesh();
+    const Index ne = mesh.num_elements();
+    table.rest = Eigen::Map<const Vector>(mesh.nodes().data(), 3 * mesh.num_nodes());
+    table.tau.assign(static_cast<size_t>(ne) * P, prm.yield_stress);
+    table.alpha.assign(prm.kinematic_hardening > 0 ? static_cast<size_t>(ne) * P * 6 : 0, 0.0);
+    // Rotation thresholds and maps only where plastic rotation is on (their copies cost a step
+    // time otherwise).
+    table.tau_R.assign(prm.rotation_active() ? static_cast<size_t>(ne) * NR : 0, prm.rotation_yield);
+    table.rotation.assign(prm.rotation_active() ? static_cast<size_t>(ne) * NR * 3 : 0, 0.0);
+    table.volume.assign(ne, 1.0);
+    table.off.assign(ne, 0);
+    table.version = 0;
+    V0_.resize(ne), h_.resize(ne), q0_.resize(ne);
+    for (Index e = 0; e < ne; ++e) {
+      const ElementNodes<E> X = mesh.element_nodes(e);
+      V0_[e] = exact_volume<E>(X);
+      q0_[e] = check_shape<E>(X).min_scaled_jacobian;
+      Scalar h = std::numeric_limits<Scalar>::max();
+      for (const auto& ed : E::edges) h = std::min(h, (X.col(ed[0]) - X.col(ed[1])).norm());
+      h_[e] = h;
+    }
+    z_.assign(ne, ElementNodes<E>::Zero());
+    result_.assign(ne, FlowResult::Unchanged);
+    changed_.assign(ne, 0);
+    reports_.assign(ne, PlasticReport{});
+    out_ = table;
+    rest_new_ = table.rest;
+    fusion_built_ = false;
+    law_.emplace(body.material());
+    synced_rest_ = table.rest;
+    synced_version_ = 0;
+  }
+
+  /// The assembler's pattern changed (the dof map grew): the fusion is rebuilt when next needed.
+  void pattern_changed() { fusion_built_ = false; }
+
+  /// New parameters mid-run: thresholds keep their hardening, shifted by the change of the
+  /// initial yield values; kinematic centres start at zero when kinematic hardening is switched
+  /// on.
+  void change_params(const PlasticParams& old, const PlasticParams& prm, PlasticTable& table) const {
+    auto shift = [](std::vector<Scalar>& v, Scalar from, Scalar to) {
+      if (from == to) return;
+      for (Scalar& t : v) t = std::isfinite(from) && std::isfinite(to) ? std::max(Scalar(0), t + (to - from)) : to;
+    };
+    shift(table.tau, old.yield_stress, prm.yield_stress);
+    shift(table.tau_R, old.rotation_yield, prm.rotation_yield);
+    if (prm.kinematic_hardening > 0 && table.alpha.empty()) table.alpha.assign(table.tau.size() * 6, 0.0);
+    if (prm.rotation_active() && table.tau_R.empty()) {
+      const size_t ne = table.off.size();
+      table.tau_R.assign(ne * NR, prm.rotation_yield);
+      table.rotation.assign(ne * NR * 3, 0.0);
+    }
+    if (prm.kinematic_hardening == 0) table.alpha.clear();
+  }
+
+  /// The plastic update after a converged step of dt that ended at displacement u (see the file
+  /// comment). The body's element data must be at `table`'s rest shapes. On change, `table`
+  /// gets the new rest shapes and thresholds and the version `version`.
+  /// `anchor` (per node, may be empty): the nodes the material mesh stays put at (fusion.hpp).
+  PlasticReport update(const Body& body, const Vector& u, Scalar dt, const PlasticParams& prm, PlasticTable& table,
+                       std::uint64_t version, int threads, const std::vector<char>& anchor = {}) {
+    PlasticReport rep;
+    const Mesh<E>& mesh = body.mesh();
+    const Index ne = mesh.num_elements();
+    if (out_.alpha.size() != table.alpha.size()) out_.alpha.resize(table.alpha.size());
+    if (out_.tau_R.size() != table.tau_R.size()) out_.tau_R.resize(table.tau_R.size());
+    if (out_.rotation.size() != table.rotation.size()) out_.rotation.resize(table.rotation.size());
+    const Vector& rest = table.rest;
+    body.assembler().for_each_element(
+        [&](Index e) {
+          result_[e] = FlowResult::Unchanged;
+          reports_[e] = PlasticReport{};
+          if (table.off[e]) return;
+          const auto& c = mesh.element(e);
+          ElementNodes<E> X, x;
+          for (int a = 0; a < N; ++a) {
+            X.col(a) = rest.template segment<3>(3 * c[a]);
+            x.col(a) = mesh.node(c[a]) + u.template segment<3>(3 * c[a]);
+          }
+          result_[e] = Flow::run(points_, *law_, body.material(), prm, dt, X, x, V0_[e], table.volume[e], q0_[e],
+                                 entries(table, e), entries(out_, e), z_[e], reports_[e]);
+        },
+        threads);
+    bool any = false;
+    for (Index e = 0; e < ne; ++e) {
+      rep.add(reports_[e]);
+      changed_[e] = result_[e] == FlowResult::Changed;
+      any = any || result_[e] != FlowResult::Unchanged;
+    }
+    if (!any) return rep;
+
+    std::vector<char>& off = off_new_;
+    off.assign(table.off.begin(), table.off.end());
+    for (Index e = 0; e < ne; ++e)
+      if (result_[e] == FlowResult::Refused) off[e] = 1, ++rep.switched_off;
+    if (!fusion_built_) {
+      fusion_.build(mesh, body.assembler());
+      fusion_built_ = true;
+    }
+    // Fuse, check, and redo without the elements the fusion would degenerate.
+    bool accepted = false;
+    for (int round = 0; round < 3 && !accepted; ++round) {
+      rest_new_ = rest;
+      bool changes = false;
+      for (Index e = 0; e < ne; ++e) changes = changes || changed_[e];
+      if (changes) fusion_.fuse(mesh, z_, changed_, rest_new_, anchor);
+      accepted = true;
+      for (Index e = 0; e < ne; ++e) {
+        if (!moved(mesh, e, rest, rest_new_, 1e-4 * h_[e])) continue;
+        const Scalar q_new = check_shape<E>(element_of(mesh, e, rest_new_)).min_scaled_jacobian;
+        if (q_new >= prm.min_rest_quality * q0_[e] ||
+            q_new >= check_shape<E>(element_of(mesh, e, rest)).min_scaled_jacobian)
+          continue;
+        accepted = false;
+        if (!off[e]) off[e] = 1, ++rep.switched_off;
+        changed_[e] = 0;
+      }
+    }
+    if (!accepted) {
+      ++rep.updates_rejected;
+      return rep;
+    }
+
+    // Commit into the table.
+    for (Index e = 0; e < ne; ++e) {
+      if (!changed_[e]) continue;
+      copy_entries(out_, table, e);
+    }
+    int changed_elements = 0;
+    for (Index e = 0; e < ne; ++e) {
+      if (!moved(mesh, e, rest, rest_new_, 0)) continue;
+      table.volume[e] = exact_volume<E>(element_of(mesh, e, rest_new_)) / V0_[e];
+      ++changed_elements;
+    }
+    rep.elements_changed = changed_elements;
+    table.rest.swap(rest_new_);
+    table.off.assign(off.begin(), off.end());
+    table.version = version;
+    return rep;
+  }
+
+  /// Brings the body's element data to the table's rest shapes (see the file comment).
+  /// Returns whether anything changed.
+  bool sync(Body& body, const PlasticTable& table) {
+    if (table.version == synced_version_) return false;
+    const Mesh<E>& mesh = body.mesh();
+    const Index n = mesh.num_nodes();
+    node_moved_.assign(n, 0);
+    for (Index i = 0; i < n; ++i)
+      for (int d = 0; d < 3; ++d)
+        if (table.rest[3 * i + d] != synced_rest_[3 * i + d]) node_moved_[i] = 1;
+    for (Index e = 0; e < mesh.num_elements(); ++e) {
+      const auto& c = mesh.element(e);
+      bool m = false;
+      for (int a = 0; a < N && !m; ++a) m = node_moved_[c[a]];
+      if (m) body.data().set_rest_shape(e, element_of(mesh, e, table.rest), /*checked=*/true);
+    }
+    rest_u_ = table.rest - Eigen::Map<const Vector>(mesh.nodes().data(), 3 * n);
+    body.set_rest_displacement(rest_u_);
+    synced_rest_ = table.rest;
+    synced_version_ = table.version;
+    return true;
+  }
+
+ private:
+  static ElementPlasticEntries entries(PlasticTable& t, Index e) {
+    return {t.tau.data() + static_cast<size_t>(e) * P,
+            t.alpha.empty() ? nullptr : t.alpha.data() + static_cast<size_t>(e) * P * 6,
+            t.tau_R.empty() ? nullptr : t.tau_R.data() + static_cast<size_t>(e) * NR,
+            t.rotation.empty() ? nullptr : t.rotation.data() + static_cast<size_t>(e) * NR * 3};
+  }
+  static void copy_entries(const PlasticTable& from, PlasticTable& to, Index e) {
+    const size_t p = static_cast<size_t>(e) * P, r = static_cast<size_t>(e) * NR;
+    std::copy_n(from.tau.data() + p, P, to.tau.data() + p);
+    if (!to.alpha.empty()) std::copy_n(from.alpha.data() + 6 * p, 6 * P, to.alpha.data() + 6 * p);
+    if (!to.tau_R.empty()) {
+      std::copy_n(from.tau_R.data() + r, NR, to.tau_R.data() + r);
+      std::copy_n(from.rotation.data() + 3 * r, 3 * NR, to.rotation.data() + 3 * r);
+    }
+  }
+  static ElementNodes<E> element_of(const Mesh<E>& mesh, Index e, const Vector& rest) {
+    ElementNodes<E> X;
+    const auto& c = mesh.element(e);
+    for (int a = 0; a < N; ++a) X.col(a) = rest.template segment<3>(3 * c[a]);
+    return X;
+  }
+  /// Whether one of element e's rest nodes moved by more than `tol` from a to b. The shape
+  /// check skips elements moved by less than 1e-4 of their shortest original edge: that changes
+  /// a scaled Jacobian by ~1e-3 at most.
+  static bool moved(const Mesh<E>& mesh, Index e, const Vector& a, const Vector& b, Scalar tol) {
+    const auto& c = mesh.element(e);
+    for (int k = 0; k < N; ++k)
+      if ((a.template segment<3>(3 * c[k]) - b.template segment<3>(3 * c[k])).cwiseAbs().maxCoeff() > tol) return true;
+    return false;
+  }
+
+  typename Flow::Points points_;
+  std::optional<typename Elastic::Law> law_;
+  std::vector<Scalar> V0_, h_, q0_;
+  std::vector<ElementNodes<E>> z_;
+  std::vector<FlowResult> result_;
+  std::vector<char> changed_, off_new_, node_moved_;
+  std::vector<PlasticReport> reports_;
+  PlasticTable out_;  ///< the flowed entries of the changed elements, before the commit
+  Vector rest_new_, synced_rest_, rest_u_;
+  std::uint64_t synced_version_ = 0;
+  MaterialFusion<E> fusion_;
+  bool fusion_built_ = false;
+};
+
+}  // namespace plastifem::plastic

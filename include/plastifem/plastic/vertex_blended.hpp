@@ -1,0 +1,18 @@
+#pragma once
+// VertexBlended (seed 000): plastic stretch and plastic rotation per vertex, from the blended
+// gradients Fbar_i = (F_i + F_o) / 2 (eq. 4-5, 7-8). The per-vertex rotations let an element
+// take a plastic twist or bend of its own: it keeps the cross-section's shape under twist
+// better than CellCentered, and distorts each element more. The formulas are in
+// plastic/flow.hpp, the update in plastic/plasticity.hpp.
+#include <plastifem/plastic/params.hpp>
+
+namespace plastifem {
+
+struct VertexBlended {
+  static constexpr const char* name = "VertexBlended";
+  static constexpr bool active = true;
+  static constexpr bool per_vertex_rotation = true;
+  using Params = PlasticParams;
+};
+
+}  // namespace plastifem
