@@ -180,6 +180,23 @@ Mat3 gradient_at(const ElementNodes<E>& X, const ElementNodes<E>& x, const Eigen
   return j * J.inverse();
 }
 
+/// The rest-space shape gradients dN/dX of one rest shape at the points the flow reads: the N
+/// nodes, the centre (index N), and for the Gauss flow the Q Gauss points after them. F = x G.
+template <FiniteElement E, bool Gauss>
+struct FlowGradients {
+  static constexpr int N = E::num_nodes;
+  static constexpr int Q = decltype(E::template quadrature<E::stiffness_degree>())::size;
+  static constexpr int size = N + 1 + (Gauss ? Q : 0);
+  std::array<ShapeGradients<E>, size> G;
+
+  FlowGradients() = default;
+  FlowGradients(const FlowPoints<E, Gauss>& pts, const ElementNodes<E>& X) {
+    for (int a = 0; a <= N; ++a) G[a] = pts.dN_nodes[a] * (X * pts.dN_nodes[a]).inverse();
+    if constexpr (Gauss)
+      for (int g = 0; g < Q; ++g) G[N + 1 + g] = pts.dN_gauss[g] * (X * pts.dN_gauss[g]).inverse();
+  }
+};
+
 /// The per-element entries of the plastic table an update reads and writes (pointers into it).
 struct ElementPlasticEntries {
   Scalar* tau;       ///< one per flow point
@@ -202,21 +219,25 @@ class ElementFlow {
   static constexpr int N = E::num_nodes;
   static constexpr bool gauss = is_hyperelastic_v<Elastic>;
   using Points = FlowPoints<E, gauss>;
+  using Gradients = FlowGradients<E, gauss>;
   static constexpr int P = Points::size;
   static constexpr int NR = PerVertexRotation ? N : 1;
 
   /// `X`, `x`: rest and current nodes; `V0`: the element's original volume, `beta` its rest
   /// volume over V0, `q0` its original shape quality (check_shape).
-  static FlowResult run(const Points& pts, const typename Elastic::Law& law, const Material& m,
-                        const PlasticParams& prm, Scalar dt, const ElementNodes<E>& X, const ElementNodes<E>& x,
+  static FlowResult run(const Points& pts, const FlowGradients<E, gauss>& grad, const typename Elastic::Law& law,
+                        const Material& m, const PlasticParams& prm, Scalar dt, const ElementNodes<E>& X,
+                        const ElementNodes<E>& x,
                         Scalar V0, Scalar beta, Scalar q0, const ElementPlasticEntries& en, const ElementPlasticEntries& out,
                         ElementNodes<E>& z, PlasticReport& rep) {
     const bool stretch = prm.stretch_active(), rotate = prm.rotation_active() && en.tau_R;
-    const Mat3 F_o = gradient_at<E>(X, x, pts.dN_nodes[N]);
-    std::array<Mat3, N> Fbar;
     const bool need_vertices = rotate || !gauss;
-    if (need_vertices)
-      for (int a = 0; a < N; ++a) Fbar[a] = 0.5 * (gradient_at<E>(X, x, pts.dN_nodes[a]) + F_o);
+    std::array<Mat3, N> Fbar;
+    Mat3 F_o = Mat3::Identity();
+    if (need_vertices) {
+      F_o = x * grad.G[N];
+      for (int a = 0; a < N; ++a) Fbar[a] = 0.5 * (x * grad.G[a] + F_o);
+    }
 
     // --- plastic stretch at the flow points (eq. 4) and hardening
     std::array<Scalar, P> gamma{}, tau_new{};
@@ -229,7 +250,7 @@ class ElementFlow {
     const Scalar stress_floor = 1e-12 * prm.stress_scale * 2 * m.mu(), rotation_floor = 1e-9;
     if (stretch) {
       for (int k = 0; k < P; ++k) {
-        const Mat3 F = gauss ? gradient_at<E>(X, x, pts.dN_gauss[k]) : Fbar[k];
+        const Mat3 F = gauss ? Mat3(x * grad.G[N + 1 + k]) : Fbar[k];
         Mat3 dev;
         if (!deviatoric_flow_stress<Elastic>(law, m, F, dev)) {
           ++rep.undefined_points;

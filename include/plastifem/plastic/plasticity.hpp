@@ -23,6 +23,7 @@
 #include <plastifem/plastic/params.hpp>
 #include <plastifem/plastic/table.hpp>
 
+#include <map>
 #include <optional>
 #include <vector>
 
@@ -71,6 +72,21 @@ class Plasticity {
       Scalar h = std::numeric_limits<Scalar>::max();
       for (const auto& ed : E::edges) h = std::min(h, (X.col(ed[0]) - X.col(ed[1])).norm());
       h_[e] = h;
+    }
+    // Flow gradients, shared by translated copies (every cell of a structured grid) until a
+    // rest shape changes, as the element data are.
+    grads_.clear(), grad_of_.assign(ne, 0), grad_users_.clear();
+    {
+      std::map<std::vector<Scalar>, std::uint32_t> shape_index;
+      for (Index e = 0; e < ne; ++e) {
+        const ElementNodes<E> X = mesh.element_nodes(e);
+        const ElementNodes<E> rel = X.colwise() - X.col(0);
+        auto [it, inserted] = shape_index.try_emplace(std::vector<Scalar>(rel.data(), rel.data() + rel.size()),
+                                                      static_cast<std::uint32_t>(grads_.size()));
+        if (inserted) grads_.emplace_back(points_, X), grad_users_.push_back(0);
+        grad_of_[e] = it->second;
+        ++grad_users_[it->second];
+      }
     }
     z_.assign(ne, ElementNodes<E>::Zero());
     result_.assign(ne, FlowResult::Unchanged);
@@ -130,7 +146,8 @@ class Plasticity {
             X.col(a) = rest.template segment<3>(3 * c[a]);
             x.col(a) = mesh.node(c[a]) + u.template segment<3>(3 * c[a]);
           }
-          result_[e] = Flow::run(points_, *law_, body.material(), prm, dt, X, x, V0_[e], table.volume[e], q0_[e],
+          result_[e] = Flow::run(points_, grads_[grad_of_[e]], *law_, body.material(), prm, dt, X, x, V0_[e],
+                                 table.volume[e], q0_[e],
                                  entries(table, e), entries(out_, e), z_[e], reports_[e]);
         },
         threads);
@@ -206,7 +223,19 @@ class Plasticity {
       const auto& c = mesh.element(e);
       bool m = false;
       for (int a = 0; a < N && !m; ++a) m = node_moved_[c[a]];
-      if (m) body.data().set_rest_shape(e, element_of(mesh, e, table.rest), /*checked=*/true);
+      if (!m) continue;
+      const ElementNodes<E> X = element_of(mesh, e, table.rest);
+      body.data().set_rest_shape(e, X, /*checked=*/true);
+      // The element's own flow gradients (copy-on-write, as the element data).
+      const std::uint32_t old = grad_of_[e];
+      if (grad_users_[old] == 1) {
+        grads_[old] = typename Flow::Gradients(points_, X);
+      } else {
+        --grad_users_[old];
+        grad_of_[e] = static_cast<std::uint32_t>(grads_.size());
+        grads_.emplace_back(points_, X);
+        grad_users_.push_back(1);
+      }
     }
     rest_u_ = table.rest - Eigen::Map<const Vector>(mesh.nodes().data(), 3 * n);
     body.set_rest_displacement(rest_u_);
@@ -248,6 +277,8 @@ class Plasticity {
   }
 
   typename Flow::Points points_;
+  std::vector<typename Flow::Gradients> grads_;  ///< one per distinct rest shape
+  std::vector<std::uint32_t> grad_of_, grad_users_;
   std::optional<typename Elastic::Law> law_;
   std::vector<Scalar> V0_, h_, q0_;
   std::vector<ElementNodes<E>> z_;
