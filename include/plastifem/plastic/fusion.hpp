@@ -11,8 +11,10 @@
 // t^k + z^k_a" and "t^k = the translation that best fits element k to x". Eliminating t^k,
 // with P = I - 1 1^T / N (centring an element's N nodes):
 //     L x = sum_k A_k^T P z^k,   L = sum_k A_k^T P A_k   (A_k: element k's nodes),
-// an element-centring Laplacian that depends on the mesh only: assembled and factorised once,
-// then one solve per plastic update, for the change dx = x_new - x of the mesh:
+// an element-centring Laplacian that depends on the mesh only (one scalar row per node; the three
+// coordinates share it): assembled and factorised once (sparse LDL^T: no BLAS, whose threads
+// spin between the small solves of consecutive steps), then one solve per plastic update, for
+// the change dx = x_new - x of the mesh:
 //     L dx = sum_k A_k^T P (z^k - X^k)      (X^k: element k's current rest nodes).
 // L's null space is the translations of each connected piece of the mesh; one node per piece
 // is held (dx = 0 there) for the solve, and then each piece is moved so that the mean dx of
@@ -25,9 +27,11 @@
 // is the mean of one element's stretched right end and its neighbour's left end, which cancel);
 // the fixed point above reproduces any compatible field (a uniform stretch, a rigid rotation of
 // every element alike) exactly.
-#include <plastifem/assembly/assembler.hpp>
-#include <plastifem/solver/linear_solver.hpp>
+#include <plastifem/assembly/block_matrix.hpp>
+#include <plastifem/mesh/mesh.hpp>
 
+#include <Eigen/SparseCholesky>
+#include <memory>
 #include <numeric>
 #include <vector>
 
@@ -38,18 +42,11 @@ class MaterialFusion {
  public:
   static constexpr int N = E::num_nodes;
 
-  /// L for `mesh` on the assembler's pattern, its held nodes, and its factorisation (on the
-  /// first solve).
-  void build(const Mesh<E>& mesh, const Assembler<E>& assembler) {
-    L_ = assembler.zero_matrix();
-    ElementMatrix<E> Ke = ElementMatrix<E>::Zero();
-    for (int a = 0; a < N; ++a)
-      for (int b = 0; b < N; ++b)
-        Ke.template block<3, 3>(3 * a, 3 * b) = ((a == b ? 1.0 : 0.0) - 1.0 / N) * Mat3::Identity();
-    Scalar* values = L_.values();
-    for (Index e = 0; e < mesh.num_elements(); ++e) assembler.add_element_matrix(e, Ke, values);
-    // One held node per connected piece (its smallest), and every node no element uses.
+  /// L for `mesh` (one scalar row per node: the three coordinates solve with the same matrix),
+  /// its held nodes, and its factorisation.
+  void build(const Mesh<E>& mesh) {
     const Index n = mesh.num_nodes();
+    // One held node per connected piece (its smallest), and every node no element uses.
     std::vector<Index> parent(n);
     std::iota(parent.begin(), parent.end(), 0);
     auto find = [&](Index i) {
@@ -67,25 +64,41 @@ class MaterialFusion {
     }
     piece_.assign(n, -1);
     piece_size_.clear();
+    held_.assign(n, 0);
     for (Index i = 0; i < n; ++i) {
-      if (!used[i]) continue;
+      if (!used[i]) {
+        held_[i] = 1;
+        continue;
+      }
       const Index root = find(i);
       if (piece_[root] < 0) piece_[root] = static_cast<Index>(piece_size_.size()), piece_size_.push_back(0);
       piece_[i] = piece_[root];
       ++piece_size_[piece_[i]];
+      if (root == i) held_[i] = 1;
     }
     piece_mean_.assign(piece_size_.size(), Vec3::Zero());
-    const Index rows = L_.rows() / 3;
-    std::vector<char> held(static_cast<size_t>(rows) * 3, 0);
+    // L = sum_k A_k^T P A_k, P = I - 1 1^T / N, lower triangle; held rows and columns identity.
+    std::vector<Eigen::Triplet<Scalar, int>> t;
+    t.reserve(static_cast<size_t>(mesh.num_elements()) * N * (N + 1) / 2 + n);
+    for (Index e = 0; e < mesh.num_elements(); ++e) {
+      const auto& c = mesh.element(e);
+      for (int a = 0; a < N; ++a)
+        for (int b = 0; b < N; ++b) {
+          const Index i = c[a], j = c[b];
+          if (i < j || held_[i] || held_[j]) continue;
+          t.emplace_back(i, j, (a == b ? 1.0 : 0.0) - 1.0 / N);
+        }
+    }
     for (Index i = 0; i < n; ++i)
-      if (!used[i] || find(i) == i) held[3 * i] = held[3 * i + 1] = held[3 * i + 2] = 1;
-    for (Index r = n; r < rows; ++r) held[3 * r] = held[3 * r + 1] = held[3 * r + 2] = 1;
-    blocks_ = ConstrainedBlocks(L_.pattern(), held);
-    blocks_.apply(L_);
-    solver_.set_settings({LinearSolverKind::Direct});
-    factorised_ = false;
-    rhs_.setZero(L_.rows());
-    dx_.setZero(rhs_.size());
+      if (held_[i]) t.emplace_back(i, i, 1.0);
+    SparseMatrix L(n, n);
+    L.setFromTriplets(t.begin(), t.end());
+    ldlt_ = std::make_unique<LDLT>();
+    ldlt_->compute(L);
+    if (ldlt_->info() != Eigen::Success)
+      fail<SolverError>("material mesh fusion: the element-centring Laplacian could not be factorised");
+    rhs_.setZero(n, 3);
+    dx_.setZero(n, 3);
   }
 
   /// rest += dx with L dx = sum over `changed` elements of A_k^T P (z^k - X^k); z holds each
@@ -93,6 +106,7 @@ class MaterialFusion {
   /// empty): the nodes whose mean change is made zero.
   void fuse(const Mesh<E>& mesh, const std::vector<ElementNodes<E>>& z, const std::vector<char>& changed,
             Vector& rest, const std::vector<char>& anchor = {}) {
+    const Index n = mesh.num_nodes();
     rhs_.setZero();
     for (Index e = 0; e < mesh.num_elements(); ++e) {
       if (!changed[e]) continue;
@@ -100,35 +114,32 @@ class MaterialFusion {
       ElementNodes<E> d;
       for (int a = 0; a < N; ++a) d.col(a) = z[e].col(a) - rest.template segment<3>(3 * c[a]);
       const Vec3 mean = d.rowwise().mean();
-      for (int a = 0; a < N; ++a) rhs_.template segment<3>(3 * c[a]) += d.col(a) - mean;
+      for (int a = 0; a < N; ++a) rhs_.row(c[a]) += (d.col(a) - mean).transpose();
     }
-    blocks_.zero(rhs_);
-    dx_.setZero();
-    solver_.solve(L_, rhs_, dx_, 0, factorised_);
-    factorised_ = true;
+    for (Index i = 0; i < n; ++i)
+      if (held_[i]) rhs_.row(i).setZero();
+    dx_ = ldlt_->solve(rhs_);
     // Each piece's mean change over its anchored nodes, or all its nodes, to zero (see the file
     // comment).
-    const Index n = mesh.num_nodes();
     for (Vec3& m : piece_mean_) m.setZero();
     piece_count_.assign(piece_size_.size(), 0);
     const bool anchored = static_cast<Index>(anchor.size()) == n;
     for (Index i = 0; i < n; ++i)
-      if (piece_[i] >= 0 && anchored && anchor[i])
-        piece_mean_[piece_[i]] += dx_.template segment<3>(3 * i), ++piece_count_[piece_[i]];
+      if (piece_[i] >= 0 && anchored && anchor[i]) piece_mean_[piece_[i]] += dx_.row(i).transpose(), ++piece_count_[piece_[i]];
     for (Index i = 0; i < n; ++i)
-      if (piece_[i] >= 0 && piece_count_[piece_[i]] == 0) piece_mean_[piece_[i]] += dx_.template segment<3>(3 * i);
+      if (piece_[i] >= 0 && piece_count_[piece_[i]] == 0) piece_mean_[piece_[i]] += dx_.row(i).transpose();
     for (size_t k = 0; k < piece_mean_.size(); ++k)
       piece_mean_[k] /= static_cast<Scalar>(piece_count_[k] > 0 ? piece_count_[k] : piece_size_[k]);
     for (Index i = 0; i < n; ++i)
-      if (piece_[i] >= 0) rest.template segment<3>(3 * i) += dx_.template segment<3>(3 * i) - piece_mean_[piece_[i]];
+      if (piece_[i] >= 0) rest.template segment<3>(3 * i) += dx_.row(i).transpose() - piece_mean_[piece_[i]];
   }
 
  private:
-  BlockSymmetricMatrix L_;
-  ConstrainedBlocks blocks_;
-  LinearSolver solver_;
-  bool factorised_ = false;
-  Vector rhs_, dx_;
+  // The linear solver's LDLT type (solver/linear_solver.hpp): compiled once with it.
+  using LDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
+  std::unique_ptr<LDLT> ldlt_;
+  Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs_, dx_;
+  std::vector<char> held_;          ///< one node per piece, and unused nodes
   std::vector<Index> piece_;        ///< connected piece of each node (-1: used by no element)
   std::vector<Index> piece_size_;   ///< nodes per piece
   std::vector<Vec3> piece_mean_;    ///< scratch

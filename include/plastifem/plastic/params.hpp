@@ -100,6 +100,7 @@ struct PlasticReport {
   int updates_rejected = 0;   ///< updates dropped whole because the fused rest shape failed its check
   Scalar max_gamma = 0;       ///< the largest gamma of the update
   Scalar max_rotation = 0;    ///< the largest plastic rotation angle of the update (rad)
+  double wall_ms = 0;         ///< time in the plastic updates and in re-preparing the element data after them
 
   void add(const PlasticReport& o) {
     points_yielded += o.points_yielded, rotations_yielded += o.rotations_yielded;
@@ -107,6 +108,7 @@ struct PlasticReport {
     rotation_clamped += o.rotation_clamped, switched_off += o.switched_off;
     undefined_points += o.undefined_points, updates_rejected += o.updates_rejected;
     max_gamma = std::max(max_gamma, o.max_gamma), max_rotation = std::max(max_rotation, o.max_rotation);
+    wall_ms += o.wall_ms;
   }
 };
 

@@ -29,17 +29,6 @@
 
 namespace plastifem::plastic {
 
-/// Volume of a rest shape, exact for the element's own geometry with the fewest points: det J
-/// of a trilinear hex has per-variable degree 2 (2x2x2 Gauss), of a quadratic tet degree 3.
-template <FiniteElement E>
-Scalar exact_volume(const ElementNodes<E>& X) {
-  constexpr int degree = E::num_vertices == 8 ? 2 : 3 * (E::order - 1);
-  const auto q = E::template quadrature<degree>();
-  Scalar v = 0;
-  for (int k = 0; k < q.size; ++k) v += q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
-  return v;
-}
-
 template <FiniteElement E, class Elastic, bool PerVertexRotation>
 class Plasticity {
  public:
@@ -67,7 +56,7 @@ class Plasticity {
     V0_.resize(ne), h_.resize(ne), q0_.resize(ne);
     for (Index e = 0; e < ne; ++e) {
       const ElementNodes<E> X = mesh.element_nodes(e);
-      V0_[e] = exact_volume<E>(X);
+      V0_[e] = rest_volume<E>(X);
       q0_[e] = check_shape<E>(X).min_scaled_jacobian;
       Scalar h = std::numeric_limits<Scalar>::max();
       for (const auto& ed : E::edges) h = std::min(h, (X.col(ed[0]) - X.col(ed[1])).norm());
@@ -164,7 +153,7 @@ class Plasticity {
     for (Index e = 0; e < ne; ++e)
       if (result_[e] == FlowResult::Refused) off[e] = 1, ++rep.switched_off;
     if (!fusion_built_) {
-      fusion_.build(mesh, body.assembler());
+      fusion_.build(mesh);
       fusion_built_ = true;
     }
     // Fuse, check, and redo without the elements the fusion would degenerate.
@@ -177,9 +166,9 @@ class Plasticity {
       accepted = true;
       for (Index e = 0; e < ne; ++e) {
         if (!moved(mesh, e, rest, rest_new_, 1e-4 * h_[e])) continue;
-        const Scalar q_new = check_shape<E>(element_of(mesh, e, rest_new_)).min_scaled_jacobian;
-        if (q_new >= prm.min_rest_quality * q0_[e] ||
-            q_new >= check_shape<E>(element_of(mesh, e, rest)).min_scaled_jacobian)
+        const ElementNodes<E> X_new = element_of(mesh, e, rest_new_);
+        if (shape_quality_at_least<E>(X_new, prm.min_rest_quality * q0_[e]) ||
+            check_shape<E>(X_new).min_scaled_jacobian >= check_shape<E>(element_of(mesh, e, rest)).min_scaled_jacobian)
           continue;
         accepted = false;
         if (!off[e]) off[e] = 1, ++rep.switched_off;
@@ -199,7 +188,7 @@ class Plasticity {
     int changed_elements = 0;
     for (Index e = 0; e < ne; ++e) {
       if (!moved(mesh, e, rest, rest_new_, 0)) continue;
-      table.volume[e] = exact_volume<E>(element_of(mesh, e, rest_new_)) / V0_[e];
+      table.volume[e] = rest_volume<E>(element_of(mesh, e, rest_new_)) / V0_[e];
       ++changed_elements;
     }
     rep.elements_changed = changed_elements;

@@ -470,8 +470,11 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
       sync_rest_shapes(from);
       StepReport sr = dynamics_.attempt(p, from, to, h, ++serial_);
       if constexpr (plastic) {
+        const auto t_flow = std::chrono::steady_clock::now();
         to.plastic = from.plastic;  // (reuses to's storage)
         plastic_update(to, h, sr);
+        sr.plastic.wall_ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_flow).count();
       }
       return sr;
     });
@@ -479,7 +482,9 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
     sync_rest_shapes(current_);  // a sub-step may have moved the element data: back to the committed state
     throw;
   }
+  const auto t_sync = std::chrono::steady_clock::now();
   sync_rest_shapes(current_);
+  r.plastic.wall_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_sync).count();
   r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
