@@ -14,7 +14,9 @@
 //
 //   bench_step [--scenes bar90,bar720,...] [--elements hex8,tet4,tet10] [--threads 1,2] [--csv FILE]
 //              [--models linear,corotational,corotational-warped,corotational-element,neohookean,
-//                        stable-neohookean]
+//                        stable-neohookean,plastic]
+//              (plastic: Corotational, CorotationalPerElement and NeoHookean with VertexBlended or
+//               CellCentered, the paper's first set, which gravity does not make flow)
 //              (corotational: the exact tangent, the default; corotational-warped: R K0 R^T)
 //              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
 //              [--cg-cap N] (real-time rows also with CG capped at N iterations; default 5, 0: none)
@@ -66,7 +68,10 @@ double heap_mb() {
 }
 
 /// cg_cap > 0: real-time mode with CG stopped after cg_cap iterations (or at 1e-6, if sooner).
-template <class E, class Model>
+/// P: a plastic policy, with the paper's first corotational set (tau = 1000, nu = 0.4, kappa =
+/// 0.2) and the physical stress, which the gravity load does not reach: the cost of carrying
+/// plasticity in a scene that stays elastic (bench_policy_overhead also measures it flowing).
+template <class E, class Model, class P = NoPlasticity>
 Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind, NewmarkMode mode, int threads,
             bool exact_tangent = true, int cg_cap = 0) {
   const auto [nx, ny, nz] = bar_scene_cells(scene);
@@ -80,7 +85,9 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   omp_set_num_threads(threads);
 #endif
   const double heap0 = heap_mb();
-  Solver<E, Model> s(mesh, Material{3000, 0.45, 1.0}, st);
+  typename P::Params pp{};
+  if constexpr (P::active) pp.yield_stress = 1000, pp.flow_rate = 0.4, pp.hardening = 0.2;
+  Solver<E, Model, P> s(mesh, Material{3000, 0.45, 1.0}, st, pp);
   s.fix(mesh.node_set("xmin"));
   s.add_gravity(Vec3(0, 0, -9.81));
   Index tip = 0;
@@ -100,7 +107,8 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   }
   std::sort(ms.begin(), ms.end());
   const double n = static_cast<double>(ms.size());
-  const std::string model = exact_tangent ? Model::name : fmt::format("{} (warped)", Model::name);
+  std::string model = exact_tangent ? Model::name : fmt::format("{} (warped)", Model::name);
+  if constexpr (P::active) model += P::per_vertex_rotation ? "+VB" : "+CC";
   return {scene, E::name, model,
           kind == LinearSolverKind::Direct ? std::string(direct_solver_name(DirectSolver::Auto)) : cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
           threads, s.num_dofs(), mesh.num_elements(), peak - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
@@ -112,8 +120,8 @@ int main(int argc, char** argv) try {
   std::vector<std::string> scenes{"bar90", "bar720"};
   std::vector<int> threads{1, 2};
   std::vector<std::string> elements{"hex8", "tet4", "tet10"};
-  std::vector<std::string> models{"linear",     "corotational",     "corotational-warped", "corotational-element",
-                                  "neohookean", "stable-neohookean"};
+  std::vector<std::string> models{"linear",     "corotational",      "corotational-warped", "corotational-element",
+                                  "neohookean", "stable-neohookean", "plastic"};
   std::string csv = "bench_step.csv";
   bool quick = false;
   int cg_cap = 5;
@@ -188,6 +196,13 @@ int main(int argc, char** argv) try {
         if (!quick) emit(measure<E, NeoHookean>(scene, mesh, CG, realtime, t));
       }
       if (!quick && want("stable-neohookean")) emit(measure<E, StableNeoHookean>(scene, mesh, CG, accurate, t));
+      if (want("plastic")) {  // seed 000: the plastic policies on the elastic scene
+        emit(measure<E, Corotational, VertexBlended>(scene, mesh, CG, accurate, t));
+        emit(measure<E, Corotational, CellCentered>(scene, mesh, CG, accurate, t));
+        emit(measure<E, Corotational, VertexBlended>(scene, mesh, CG, realtime, t));
+        if (!std::is_same_v<E, Tet4>) emit(measure<E, CorotationalPerElement, VertexBlended>(scene, mesh, CG, realtime, t));
+        emit(measure<E, NeoHookean, VertexBlended>(scene, mesh, CG, accurate, t));
+      }
     }
   };
   for (const auto& scene : scenes) {

@@ -72,7 +72,7 @@ def main():
     window.SetOffScreenRendering(1)
     width = 560 if view == "side" else 300
     rows = max(len(f) for _, f in columns)
-    height = (150 if view == "side" else 300) * rows + 60
+    height = (140 if view == "side" else 300) * rows + 70
     window.SetSize(width * len(columns), height)
     for c, ((title, frames), rs) in enumerate(zip(columns, readers)):
         renderer = vtk.vtkRenderer()
@@ -108,12 +108,17 @@ def main():
             actor.GetProperty().EdgeVisibilityOn()
             actor.GetProperty().SetEdgeColor(0.15, 0.15, 0.15)
             renderer.AddActor(actor)
+            tf.Update()
+            bb = tf.GetOutput().GetBounds()
             text = vtk.vtkTextActor()
             text.SetInput(label)
             text.GetTextProperty().SetColor(0, 0, 0)
             text.GetTextProperty().SetFontSize(14)
-            text.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-            text.SetPosition(0.02, 1 - (k + 1) / (rows + 0.4))
+            text.GetPositionCoordinate().SetCoordinateSystemToWorld()
+            if view == "side":
+                text.GetPositionCoordinate().SetValue(bb[0], 0, bb[5] + 0.3)
+            else:
+                text.GetPositionCoordinate().SetValue(0, bb[2], bb[5] + 0.3)
             renderer.AddActor2D(text)
         title_actor = vtk.vtkTextActor()
         title_actor.SetInput(title)
@@ -121,7 +126,7 @@ def main():
         title_actor.GetTextProperty().SetFontSize(16)
         title_actor.GetTextProperty().BoldOn()
         title_actor.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-        title_actor.SetPosition(0.02, 0.95)
+        title_actor.SetPosition(0.02, 0.96)
         renderer.AddActor2D(title_actor)
         camera = renderer.GetActiveCamera()
         if view == "side":
@@ -133,7 +138,7 @@ def main():
         camera.SetFocalPoint(0, 0, 0)
         camera.ParallelProjectionOn()
         renderer.ResetCamera()
-        camera.Zoom(1.15)
+        camera.Zoom(0.92)
         if c == len(columns) - 1:
             bar = vtk.vtkScalarBarActor()
             bar.SetLookupTable(lut)
