@@ -101,8 +101,9 @@ Row measure(const std::string& scene, int threads, int steps) {
 /// What a plastic policy costs: Solver<E, Model, P> against Solver<E, Model> on the same scene
 /// (accurate mode, CG 1e-6), steps alternating. `flowing`: yield stress 0, so that every flow
 /// point yields in every step (the worst case: flow, fusion and re-prepared element data every
-/// step); else the paper's first corotational set (tau = 1000, nu = 0.4) with the physical
-/// stress, which the gravity load does not reach (the check alone).
+/// step); else tau = 10^4 with the physical stress, which the gravity load does not reach (the
+/// check alone; the paper's tau = 1000 is reached by the Neo-Hookean bar90 under gravity, whose
+/// clamp sees a bending stress of ~1000 and twice that in the first swing).
 template <class E, class Model, class P>
 Row measure_plastic(const std::string& scene, int threads, int steps, bool flowing) {
   const auto [nx, ny, nz] = bar_scene_cells(scene);
@@ -115,7 +116,7 @@ Row measure_plastic(const std::string& scene, int threads, int steps, bool flowi
   st.linear = {LinearSolverKind::ConjugateGradient, 1e-6, 1000};
   st.threads = threads;
   PlasticParams pp;
-  pp.yield_stress = flowing ? 0 : 1000;
+  pp.yield_stress = flowing ? 0 : 1e4;
   pp.flow_rate = 0.4;
   Solver<E, Model> elastic(mesh, material, st);
   Solver<E, Model, P> plastic(mesh, material, st, pp);
@@ -183,8 +184,8 @@ int main(int argc, char** argv) try {
       emit(measure<Tet4, Corotational>(scene, t, steps));
     }
   fmt::print("\nSolver<E, Model, VertexBlended or CellCentered> against Solver<E, Model> (accurate, CG 1e-6; 'bare ms'\n"
-             "is the elastic Solver's; |du|max: how far plasticity moved the answer). Without 'flowing': the\n"
-             "paper's tau = 1000, which gravity does not reach (the check alone); 'flowing': tau = 0, every\n"
+             "is the elastic Solver's; |du|max: how far plasticity moved the answer). Without 'flowing':\n"
+             "tau = 10^4, which gravity does not reach (the check alone); 'flowing': tau = 0, every\n"
              "point flows in every step (flow, fusion, element data re-prepared every step)\n\n");
   for (const auto& scene : plastic_scenes)
     for (int t : threads)

@@ -181,8 +181,10 @@ Mat3 gradient_at(const ElementNodes<E>& X, const ElementNodes<E>& x, const Eigen
   return j * J.inverse();
 }
 
-/// The rest-space shape gradients dN/dX of one rest shape at the points the flow reads: the N
-/// nodes, the centre (index N), and for the Gauss flow the Q Gauss points after them. F = x G.
+/// The rest-space shape gradients of one rest shape at the points the flow reads, so that each
+/// F is one product x G: the blended gradients (dN/dX(node a) + dN/dX(centre)) / 2 of the N
+/// nodes (F x G_a is the blended Fbar_a), the centre's dN/dX (index N), and for the Gauss flow
+/// the Q Gauss points' after them.
 template <FiniteElement E, bool Gauss>
 struct FlowGradients {
   static constexpr int N = E::num_nodes;
@@ -193,10 +195,25 @@ struct FlowGradients {
   FlowGradients() = default;
   FlowGradients(const FlowPoints<E, Gauss>& pts, const ElementNodes<E>& X) {
     for (int a = 0; a <= N; ++a) G[a] = pts.dN_nodes[a] * (X * pts.dN_nodes[a]).inverse();
+    for (int a = 0; a < N; ++a) G[a] = 0.5 * (G[a] + G[N]);
     if constexpr (Gauss)
       for (int g = 0; g < Q; ++g) G[N + 1 + g] = pts.dN_gauss[g] * (X * pts.dN_gauss[g]).inverse();
   }
 };
+
+/// F = x G for one point: 3 x N times N x 3, written out (Eigen's product dispatch costs more
+/// than the 9 N multiply-adds at this size).
+template <FiniteElement E>
+Mat3 times(const ElementNodes<E>& x, const ShapeGradients<E>& G) {
+  Mat3 F;
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i) {
+      Scalar s = 0;
+      for (int a = 0; a < E::num_nodes; ++a) s += x(i, a) * G(a, j);
+      F(i, j) = s;
+    }
+  return F;
+}
 
 /// Volume of a rest shape, exact for the element's own geometry with the fewest points: det J
 /// of a trilinear hex has per-variable degree 2 (2x2x2 Gauss), of a quadratic tet degree 3.
@@ -259,6 +276,29 @@ class ElementFlow {
   static constexpr int P = Points::size;
   static constexpr int NR = PerVertexRotation ? N : 1;
 
+  /// The common case, cheaply: whether anything can flow at all. false only when no point is
+  /// above yield, no rotation is to be tested and no volume to restore: the small-strain family
+  /// without a kinematic centre, |s|^2 = 3/2 (2 mu k)^2 |dev E|^2 against tau^2, one product
+  /// x G and one F^T F per point. run() decides in every other case.
+  static bool may_flow(const Gradients& grad, const Material& m, const PlasticParams& prm, const ElementNodes<E>& x,
+                       Scalar beta, const ElementPlasticEntries& en) {
+    if constexpr (gauss) {
+      return true;
+    } else {
+      if ((prm.rotation_active() && en.tau_R) || en.alpha) return true;
+      if (prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance) return true;
+      if (!prm.stretch_active()) return false;
+      const Scalar c = 1.5 * (2 * m.mu() * prm.stress_scale) * (2 * m.mu() * prm.stress_scale);
+      for (int k = 0; k < P; ++k) {
+        const Mat3 F = times<E>(x, grad.G[k]);
+        Mat3 Es = 0.5 * (F.transpose() * F);
+        Es.diagonal().array() -= Es.trace() / 3;  // dev E (the -I/2 has no deviator)
+        if (c * Es.squaredNorm() > en.tau[k] * en.tau[k]) return true;
+      }
+      return false;
+    }
+  }
+
   /// `X`, `x`: rest and current nodes; `V0`: the element's original volume, `beta` its rest
   /// volume over V0, `q0` its original shape quality (check_shape).
   static FlowResult run(const Points& pts, const FlowGradients<E, gauss>& grad, const typename Elastic::Law& law,
@@ -267,12 +307,13 @@ class ElementFlow {
                         Scalar V0, Scalar beta, Scalar q0, const ElementPlasticEntries& en, const ElementPlasticEntries& out,
                         ElementNodes<E>& z, PlasticReport& rep) {
     const bool stretch = prm.stretch_active(), rotate = prm.rotation_active() && en.tau_R;
+    const bool restore = prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance;
     const bool need_vertices = rotate || !gauss;
     std::array<Mat3, N> Fbar;
     Mat3 F_o = Mat3::Identity();
     if (need_vertices) {
-      F_o = x * grad.G[N];
-      for (int a = 0; a < N; ++a) Fbar[a] = 0.5 * (x * grad.G[a] + F_o);
+      F_o = times<E>(x, grad.G[N]);
+      for (int a = 0; a < N; ++a) Fbar[a] = times<E>(x, grad.G[a]);
     }
 
     // --- plastic stretch at the flow points (eq. 4) and hardening
@@ -286,7 +327,7 @@ class ElementFlow {
     const Scalar stress_floor = 1e-12 * prm.stress_scale * 2 * m.mu(), rotation_floor = 1e-9;
     if (stretch) {
       for (int k = 0; k < P; ++k) {
-        const Mat3 F = gauss ? Mat3(x * grad.G[N + 1 + k]) : Fbar[k];
+        const Mat3 F = gauss ? times<E>(x, grad.G[N + 1 + k]) : Fbar[k];
         Mat3 dev;
         if (!deviatoric_flow_stress<Elastic>(law, m, F, dev)) {
           ++rep.undefined_points;
@@ -359,7 +400,6 @@ class ElementFlow {
     }
 
     // --- volume restitution need (eq. 9)
-    const bool restore = prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance;
     if (!flowed && !rotated && !restore) return FlowResult::Unchanged;
 
     // --- the target shape (eq. 7), then eq. 9

@@ -131,13 +131,12 @@ class Plasticity {
           if (table.off[e]) return;
           const auto& c = mesh.element(e);
           ElementNodes<E> X, x;
-          for (int a = 0; a < N; ++a) {
-            X.col(a) = rest.template segment<3>(3 * c[a]);
-            x.col(a) = mesh.node(c[a]) + u.template segment<3>(3 * c[a]);
-          }
+          for (int a = 0; a < N; ++a) x.col(a) = mesh.node(c[a]) + u.template segment<3>(3 * c[a]);
+          const auto en = entries(table, e);
+          if (!Flow::may_flow(grads_[grad_of_[e]], body.material(), prm, x, table.volume[e], en)) return;
+          for (int a = 0; a < N; ++a) X.col(a) = rest.template segment<3>(3 * c[a]);
           result_[e] = Flow::run(points_, grads_[grad_of_[e]], *law_, body.material(), prm, dt, X, x, V0_[e],
-                                 table.volume[e], q0_[e],
-                                 entries(table, e), entries(out_, e), z_[e], reports_[e]);
+                                 table.volume[e], q0_[e], en, entries(out_, e), z_[e], reports_[e]);
         },
         threads);
     bool any = false;
