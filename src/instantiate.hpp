@@ -4,3 +4,5 @@
 
 #define PLASTIFEM_INSTANTIATE_SOLVER(E, M) template class plastifem::Solver<plastifem::E, plastifem::M>;
 #define PLASTIFEM_INSTANTIATE_PLASTIC_SOLVER(E, M, P) template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P>;
+#define PLASTIFEM_INSTANTIATE_ENRICHED_SOLVER(E, M, X) \
+  template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::NoPlasticity, plastifem::X>;

@@ -6,10 +6,13 @@
 //
 // Everything here is a function of (u, rest shapes): no time, no loads, no constraints. The
 // plastic policy changes rest shapes through data() (copy-on-write per element, epoch), the
-// enrichment policy the dof map through dof_map(); rebuild() then brings the assembler up to
-// date. Both compile to nothing for NoPlasticity / NoEnrichment.
+// enrichment policy the dof map and the enriched elements through cut() (X-FEM, seed 001:
+// enrichment/enrichment.hpp); rebuild() then brings the assembler up to date. An enriched
+// element is integrated over its pieces by its point law (enrichment/cut_element.hpp); with no
+// cut the element loop takes one predictable branch per element.
 #include <plastifem/assembly/element_data.hpp>
 #include <plastifem/assembly/mass.hpp>
+#include <plastifem/enrichment/enrichment.hpp>
 
 #include <limits>
 #include <string>
@@ -25,7 +28,7 @@ class Discretization {
   using Data = typename Elastic::template ElementData<E>;
 
   Discretization(const Mesh<E>& mesh, const Material& material)
-      : mesh_(mesh), dofs_(mesh.num_nodes()), assembler_(mesh_, dofs_), data_(mesh_, material) {
+      : mesh_(mesh), dofs_(mesh.num_nodes()), assembler_(mesh_, dofs_), data_(mesh_, material), law_(material) {
     if (mesh_.num_elements() == 0)
       fail<MeshError>("the mesh has no elements ({} nodes): nothing to simulate", mesh_.num_nodes());
     element_energy_.assign(mesh_.num_elements(), 0.0);
@@ -40,6 +43,13 @@ class Discretization {
   const ElementDataTable<E, Elastic>& data() const { return data_; }
   ElementDataTable<E, Elastic>& data() { return data_; }
   const Material& material() const { return data_.material(); }
+  /// The cuts and the enriched elements (empty without a cut).
+  const Enrichment<E>& enrichment() const { return enrichment_; }
+  /// Applies a cut (enrichment/enrichment.hpp); the caller then rebuilds what depends on the dof
+  /// map. Throws InvalidArgument, with nothing changed, if the cut is refused.
+  CutReport cut(const Cut& surface, const CutOptions& options, bool shifted, int id, int& applied_id) {
+    return enrichment_.apply(mesh_, dofs_, surface, options, shifted, id, applied_id);
+  }
   Index num_dofs() const { return assembler_.num_dofs(); }
   /// Diameter of the mesh's bounding box (the length scale of increment tests).
   Scalar size() const { return size_; }
@@ -67,8 +77,12 @@ class Discretization {
     f.setZero();
     Scalar* values = K ? K->values() : nullptr;
     if (K) K->set_zero();
+    const bool cuts = !enrichment_.empty();
     assembler_.for_each_element(
         [&](Index e) {
+          if (cuts) {
+            if (const CutElement<E>* c = enrichment_.element(e)) return assemble_enriched(*c, e, u, f, K, kind);
+          }
           ElementVector<E> fe;
           ElementMatrix<E> Ke;
           // Only Ke's lower blocks are read by the scatter (assembly/assembler.hpp).
@@ -114,9 +128,35 @@ class Discretization {
   Scalar strain_energy(const Vector& u) const {
     Scalar w = 0;
     ElementVector<E> fe;
-    for (Index e = 0; e < mesh_.num_elements(); ++e)
-      w += Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, nullptr);
+    typename CutElement<E>::SpanVector fx;
+    for (Index e = 0; e < mesh_.num_elements(); ++e) {
+      if (const CutElement<E>* c = enrichment_.element(e))
+        w += c->template evaluate<Elastic>(law_, current_nodes(e, u), u, fx, nullptr, TangentKind::Projected);
+      else
+        w += Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, nullptr);
+    }
     return w;
+  }
+
+  /// The enriched part of the mass matrix (the standard part is assemble_mass's): added into M
+  /// (assembly/mass.hpp's pattern for this dof map).
+  void add_enriched_mass(BlockSymmetricMatrix& M, MassKind kind) const {
+    for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
+      const Index e = enrichment_.element_of(k);
+      const Eigen::Matrix<Scalar, N, 1> lumped =
+          element_mass<E>(mesh_.element_nodes(e), material().density, MassKind::Lumped).diagonal();
+      assembler_.add_extended_matrix(e, enrichment_.elements()[k].enriched_mass(material().density, kind, lumped),
+                                     M.values());
+    }
+  }
+  /// The enriched dofs' share of a body force per unit mass g (enrichment/cut_element.hpp),
+  /// added into F.
+  void add_enriched_body_force(const Vec3& g, MassKind kind, Vector& F) const {
+    for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
+      const CutElement<E>& c = enrichment_.elements()[k];
+      const auto f = c.enriched_body_force(material().density, g, kind);
+      for (size_t j = 0; j < f.size(); ++j) F.template segment<3>(3 * c.enriched[j].row) += f[j];
+    }
   }
 
   /// Says where a non-finite force comes from: the first element whose force is not finite,
@@ -126,8 +166,14 @@ class Discretization {
     if (!u.allFinite()) return " (the displacement itself is not finite)";
     const auto q = E::template quadrature<E::stiffness_degree>();
     ElementVector<E> fe;
+    typename CutElement<E>::SpanVector fx;
     for (Index e = 0; e < mesh_.num_elements(); ++e) {
       const ElementNodes<E> x = current_nodes(e, u);
+      if (const CutElement<E>* c = enrichment_.element(e)) {
+        const Scalar w = c->template evaluate<Elastic>(law_, x, u, fx, nullptr, TangentKind::Projected);
+        if (std::isfinite(w) && fx.allFinite()) continue;
+        return fmt::format(" (cut element {}: a piece is inverted or its force is not finite)", e);
+      }
       const Scalar w = Elastic::template evaluate<E>(data_[e], x, fe, nullptr);
       if (std::isfinite(w) && fe.allFinite()) continue;
       for (int k = 0; k < q.size; ++k)
@@ -140,10 +186,20 @@ class Discretization {
     return "";
   }
 
-  /// Deformed volume at u.
+  /// Deformed volume at u (a cut element's pieces each moved with their own side).
   Scalar volume(const Vector& u) const {
     Scalar v = 0;
-    for (Index e = 0; e < mesh_.num_elements(); ++e) v += element_volume<E>(current_nodes(e, u));
+    for (Index e = 0; e < mesh_.num_elements(); ++e) {
+      const ElementNodes<E> x = current_nodes(e, u);
+      if (const CutElement<E>* c = enrichment_.element(e)) {
+        for (int s = 0; s < c->num_sides; ++s) {
+          const ElementNodes<E> y = c->side_nodes(x, u, s);
+          for (int q = 0; q < c->stiffness[s].size(); ++q) v += c->stiffness[s].dv[q] * (y * c->stiffness[s].G[q]).determinant();
+        }
+        continue;
+      }
+      v += element_volume<E>(x);
+    }
     return v;
   }
   /// Cauchy stress per element at its centre.
@@ -155,10 +211,25 @@ class Discretization {
   }
 
  private:
+  /// An enriched element's force and tangent over its span (enrichment/cut_element.hpp).
+  void assemble_enriched(const CutElement<E>& c, Index e, const Vector& u, Vector& f, BlockSymmetricMatrix* K,
+                         TangentKind kind) const {
+    typename CutElement<E>::SpanVector fe;
+    typename CutElement<E>::SpanMatrix Ke;
+    element_energy_[e] = c.template evaluate<Elastic>(law_, current_nodes(e, u), u, fe, K ? &Ke : nullptr, kind);
+    const auto& conn = mesh_.element(e);
+    for (int a = 0; a < N; ++a) f.template segment<3>(3 * conn[a]) += fe.template segment<3>(3 * a);
+    for (size_t k = 0; k < c.enriched.size(); ++k)
+      f.template segment<3>(3 * c.enriched[k].row) += fe.template segment<3>(3 * (N + static_cast<int>(k)));
+    if (K) assembler_.add_extended_matrix(e, Ke, K->values());
+  }
+
   Mesh<E> mesh_;  // a copy: the solver stays valid whatever happens to the caller's mesh
   DofMap dofs_;
   Assembler<E> assembler_;
   ElementDataTable<E, Elastic> data_;
+  typename Elastic::Law law_;  ///< the point law, for enriched elements
+  Enrichment<E> enrichment_;
   Vector X_;  ///< rest positions of the nodes
   Scalar size_ = 1;
   mutable std::vector<Scalar> element_energy_;  ///< W_e of the last assembly (line search, validity)

@@ -6,6 +6,8 @@ namespace plastifem {
 struct NoEnrichment {
   static constexpr const char* name = "NoEnrichment";
   static constexpr bool active = false;
+  static constexpr bool shifted = false;
+  struct Params {};
 };
 
 }  // namespace plastifem

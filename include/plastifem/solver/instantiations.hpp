@@ -67,6 +67,33 @@
   X(Hex8, NeoHookeanMeanDilatation, VertexBlended)                                                           \
   X(Hex8, NeoHookeanMeanDilatation, CellCentered)
 
+// The cut compositions (seed 001): both enrichments with the elastic families on every element.
+#define PLASTIFEM_ENRICHED_SOLVERS(X)                                                                        \
+  X(Tet4, Linear, Heaviside) \
+  X(Tet4, Linear, ShiftedHeaviside) \
+  X(Tet4, Corotational, Heaviside) \
+  X(Tet4, Corotational, ShiftedHeaviside) \
+  X(Tet4, CorotationalPerElement, Heaviside) \
+  X(Tet4, CorotationalPerElement, ShiftedHeaviside) \
+  X(Tet4, NeoHookean, Heaviside) \
+  X(Tet4, NeoHookean, ShiftedHeaviside) \
+  X(Tet10, Linear, Heaviside) \
+  X(Tet10, Linear, ShiftedHeaviside) \
+  X(Tet10, Corotational, Heaviside) \
+  X(Tet10, Corotational, ShiftedHeaviside) \
+  X(Tet10, CorotationalPerElement, Heaviside) \
+  X(Tet10, CorotationalPerElement, ShiftedHeaviside) \
+  X(Tet10, NeoHookean, Heaviside) \
+  X(Tet10, NeoHookean, ShiftedHeaviside) \
+  X(Hex8, Linear, Heaviside) \
+  X(Hex8, Linear, ShiftedHeaviside) \
+  X(Hex8, Corotational, Heaviside) \
+  X(Hex8, Corotational, ShiftedHeaviside) \
+  X(Hex8, CorotationalPerElement, Heaviside) \
+  X(Hex8, CorotationalPerElement, ShiftedHeaviside) \
+  X(Hex8, NeoHookean, Heaviside) \
+  X(Hex8, NeoHookean, ShiftedHeaviside)
+
 #ifdef PLASTIFEM_USE_COMPILED
 #define PLASTIFEM_EXTERN_SOLVER(E, M) extern template class plastifem::Solver<plastifem::E, plastifem::M>;
 PLASTIFEM_COMMON_SOLVERS(PLASTIFEM_EXTERN_SOLVER)
@@ -75,4 +102,8 @@ PLASTIFEM_COMMON_SOLVERS(PLASTIFEM_EXTERN_SOLVER)
   extern template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P>;
 PLASTIFEM_PLASTIC_SOLVERS(PLASTIFEM_EXTERN_PLASTIC_SOLVER)
 #undef PLASTIFEM_EXTERN_PLASTIC_SOLVER
+#define PLASTIFEM_EXTERN_ENRICHED_SOLVER(E, M, X) \
+  extern template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::NoPlasticity, plastifem::X>;
+PLASTIFEM_ENRICHED_SOLVERS(PLASTIFEM_EXTERN_ENRICHED_SOLVER)
+#undef PLASTIFEM_EXTERN_ENRICHED_SOLVER
 #endif

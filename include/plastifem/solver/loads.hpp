@@ -57,8 +57,11 @@ class Loads {
   std::uint64_t version() const { return version_; }
 
   /// Recomputes every load's force vector for num_dofs dofs (standard dofs first).
-  void build(const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs) {
-    for (Load& l : loads_) compute(l, mesh, density, mass, num_dofs);
+  /// Cut bodies (X-FEM): `enriched` adds the enriched dofs' share of a body force g to F (body
+  /// forces are integrated per piece); a function reference, not kept.
+  using EnrichedBodyForce = std::function<void(const Vec3& g, MassKind, Vector& F)>;
+  void build(const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs, const EnrichedBodyForce& enriched = {}) {
+    for (Load& l : loads_) compute(l, mesh, density, mass, num_dofs, enriched);
     built_ = {density, mass, num_dofs};
   }
   /// f = sum of curve(t) x load vector. Throws InvalidArgument if a curve gives a non-finite value.
@@ -71,8 +74,8 @@ class Loads {
     }
   }
   /// A newly added load's vector needs build_one before use (cheap: that load only).
-  void build_last(const Mesh<E>& mesh) {
-    if (!loads_.empty()) compute(loads_.back(), mesh, built_.density, built_.mass, built_.num_dofs);
+  void build_last(const Mesh<E>& mesh, const EnrichedBodyForce& enriched = {}) {
+    if (!loads_.empty()) compute(loads_.back(), mesh, built_.density, built_.mass, built_.num_dofs, enriched);
   }
 
  private:
@@ -89,12 +92,15 @@ class Loads {
     Index num_dofs = 0;
   };
 
-  static void compute(Load& l, const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs) {
+
+  static void compute(Load& l, const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs,
+                      const EnrichedBodyForce& enriched) {
     Vector F = Vector::Zero(num_dofs);
     if (const auto* n = std::get_if<NodalForces>(&l.def)) {
       for (size_t k = 0; k < n->nodes.size(); ++k) F.segment<3>(3 * n->nodes[k]) += n->forces[k];
     } else if (const auto* b = std::get_if<BodyForce>(&l.def)) {
       F.head(3 * mesh.num_nodes()) = body_force_load(mesh, density, b->g, mass);
+      if (enriched) enriched(b->g, mass, F);
     } else if (const auto* tr = std::get_if<Traction>(&l.def)) {
       F.head(3 * mesh.num_nodes()) = traction_load(mesh, tr->faces, tr->t);
     }

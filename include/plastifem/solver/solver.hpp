@@ -14,7 +14,7 @@
 // (Newton, CG, a NaN, an inverted element, an exception thrown by a load curve or a prescribed
 // path): every change is made to a working copy, committed by a swap at the very end.
 #include <plastifem/core/log.hpp>
-#include <plastifem/enrichment/none.hpp>
+#include <plastifem/enrichment/enrichment_policy.hpp>
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/plastic/plastic.hpp>
 #include <plastifem/plastic/plasticity.hpp>
@@ -32,7 +32,11 @@ template <FiniteElement E, class Elastic, class Plastic = NoPlasticity, class En
 class Solver {
   static_assert(PlasticModel<Plastic>, "the plastic policy must be NoPlasticity, VertexBlended or CellCentered "
                                        "(plastic/plastic.hpp: the PlasticModel concept)");
-  static_assert(std::is_same_v<Enrich, NoEnrichment>, "enrichment policies other than NoEnrichment arrive with seed 001");
+  static_assert(EnrichmentModel<Enrich>, "the enrichment policy must be NoEnrichment, Heaviside or ShiftedHeaviside "
+                                         "(enrichment/enrichment_policy.hpp: the EnrichmentModel concept)");
+  static_assert(!(Plastic::active && Enrich::active),
+                "plasticity and X-FEM cutting in one Solver are not supported yet: choose one of the two policies");
+  static constexpr bool enriched = Enrich::active;
 
   struct NoPlasticEngine {};
   static constexpr bool plastic = Plastic::active;
@@ -103,6 +107,27 @@ class Solver {
 
   /// The dof map (assembly/dof_map.hpp): block rows per (node, slot).
   const DofMap& dof_map() const { return body_.dof_map(); }
+
+  // --- cutting (X-FEM, seed 001; enrichment/) ----------------------------------------------
+  /// Cuts the body along `surface` (a CutPlane, CutPatch or CutSurface) now, at any step: the
+  /// cut elements' nodes get enriched dofs (appended after the existing ones), which start at
+  /// zero, so the displacement, velocity and acceleration fields are unchanged at this instant;
+  /// the system is rebuilt once. Throws InvalidArgument, with the solver unchanged, for a cut
+  /// that crosses no element, or that crosses an element another cut already crosses.
+  CutHandle cut(const Cut& surface, CutOptions options = {})
+    requires Enrich::active;
+  /// Grows cut `h` to `surface` (a blade moved on: the grown surface, which contains the old
+  /// one): the elements it newly crosses are cut, what was cut stays cut.
+  void grow_cut(CutHandle h, const Cut& surface, CutOptions options = {})
+    requires Enrich::active;
+  /// What the last cut or growth did.
+  const CutReport& last_cut_report() const { return cut_report_; }
+  /// The cuts and the enriched elements (for output: io::write_cut_vtu, enrichment/output.hpp).
+  const Enrichment<E>& enrichment() const { return body_.enrichment(); }
+  /// Every node's physical displacement, one node per column: u_i, and for Heaviside
+  /// enrichment u_i + sum_cuts H_i a_i (its standard dofs alone are not the node's
+  /// displacement; with shifted enrichment they are).
+  Eigen::Matrix3Xd nodal_displacements() const;
   /// Adds a dof slot to a node (the enrichment policies' entry point): the system is rebuilt,
   /// the state grows with zeros in the new rows. A slot no element couples is held at zero.
   Index add_dof_slot(Index node);
@@ -199,6 +224,15 @@ class Solver {
   /// The plastic update after a converged (sub-)step of dt into state s (dynamics).
   void plastic_update(StateType& s, Scalar dt, StepReport& r);
 
+  /// X-FEM: the enriched dofs' share of a body force (empty without a cut).
+  typename Loads<E>::EnrichedBodyForce enriched_body_force() const {
+    if (body_.enrichment().empty()) return {};
+    return [this](const Vec3& g, MassKind kind, Vector& F) { body_.add_enriched_body_force(g, kind, F); };
+  }
+  /// Heaviside enrichment: the enriched dofs of constrained nodes, held at zero with them.
+  std::vector<Index> held_enriched_dofs() const;
+  CutReport cut_report_;
+
   SolverSettings settings_;
   Discretization<E, Elastic> body_;
   System<E, Elastic> system_;
@@ -275,7 +309,7 @@ void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) 
   settings_ = s;
   system_.set_settings(body_, settings_);
   system_.set_threads(threads());
-  loads_.build(mesh(), material().density, settings_.mass, num_dofs());
+  loads_.build(mesh(), material().density, settings_.mass, num_dofs(), enriched_body_force());
   if (balance_changed) current_.acceleration_known = false;
   dynamics_.invalidate();
 }
@@ -560,9 +594,9 @@ void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
   if constexpr (plastic) plastic_.pattern_changed();
   body_.rebuild();
   const Index n = body_.num_dofs();
-  system_.rebuild(body_, settings_, constraints_.constrained_dofs());
+  system_.rebuild(body_, settings_, constraints_.constrained_dofs(), held_enriched_dofs());
   system_.set_threads(threads());
-  loads_.build(mesh(), material().density, settings_.mass, n);
+  loads_.build(mesh(), material().density, settings_.mass, n, enriched_body_force());
   current_.grow(n);
   work_.reset(n), trial_.reset(n);
   dynamics_.resize(n);
@@ -572,7 +606,7 @@ void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::constraints_changed() {
-  system_.set_constrained(body_, constraints_.constrained_dofs());
+  system_.set_constrained(body_, constraints_.constrained_dofs(), held_enriched_dofs());
   if constexpr (plastic) {
     anchor_.assign(mesh().num_nodes(), 0);
     for (Index i = 0; i < mesh().num_nodes(); ++i)
@@ -585,7 +619,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename Loads<E>::Definition def, LoadCurve curve, std::string what) {
   const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
-  loads_.build_last(mesh());
+  loads_.build_last(mesh(), enriched_body_force());
   current_.acceleration_known = false;
   return h;
 }
@@ -623,6 +657,62 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::material_positions() const {
   if constexpr (plastic) return Eigen::Map<const Eigen::Matrix3Xd>(current_.plastic.rest.data(), 3, mesh().num_nodes());
   else return mesh().nodes();
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOptions options)
+  requires Enrich::active
+{
+  int id = -1;
+  cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id);
+  rebuild();
+  dynamics_.invalidate();
+  return CutHandle{id};
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surface, CutOptions options)
+  requires Enrich::active
+{
+  if (h.id < 0) fail<InvalidArgument>("grow_cut: an invalid cut handle");
+  int id = -1;
+  cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id);
+  if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) {
+    rebuild();
+    dynamics_.invalidate();
+  }
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+std::vector<Index> Solver<E, Elastic, Plastic, Enrich>::held_enriched_dofs() const {
+  std::vector<Index> held;
+  if constexpr (enriched && !Enrich::shifted) {
+    const auto& constrained = constraints_.constrained_dofs();
+    for (Index i = 0; i < mesh().num_nodes(); ++i) {
+      bool any = false;
+      for (int d = 0; d < 3; ++d) any = any || (3 * i + d < static_cast<Index>(constrained.size()) && constrained[3 * i + d]);
+      if (!any) continue;
+      for (Index r : body_.enrichment().rows_of(i))
+        for (int d = 0; d < 3; ++d) held.push_back(3 * r + d);
+    }
+  }
+  return held;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::nodal_displacements() const {
+  Eigen::Matrix3Xd u = Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
+  if constexpr (enriched && !Enrich::shifted) {
+    const auto& enr = body_.enrichment();
+    for (int c = 0; c < enr.num_cuts(); ++c)
+      for (Index i = 0; i < mesh().num_nodes(); ++i)
+        if (const Index r = enr.row(c, i); r >= 0) u.col(i) += enr.sign(c, i) * current_.u.template segment<3>(3 * r);
+  }
+  return u;
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>

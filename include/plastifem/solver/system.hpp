@@ -29,7 +29,8 @@ class System {
 
   /// New pattern (the dof map changed): every matrix is rebuilt, the linear solvers forget
   /// their analysis.
-  void rebuild(const Body& body, const SolverSettings& s, const std::vector<char>& constrained) {
+  void rebuild(const Body& body, const SolverSettings& s, const std::vector<char>& constrained,
+               const std::vector<Index>& also_held = {}) {
     const Assembler<E>& asm_ = body.assembler();
     M = asm_.zero_matrix();
     K = asm_.zero_matrix();
@@ -40,7 +41,7 @@ class System {
     K_constant_valid_ = false;
     coefficients_ = {0, 0, 0};
     build_mass(body, s.mass);
-    set_constrained(body, constrained);
+    set_constrained(body, constrained, also_held);
     k0_epoch_ = ~std::uint64_t{0};
   }
   /// New settings (mass kind, solver settings): same pattern.
@@ -55,13 +56,15 @@ class System {
     static_linear_.set_threads(threads);
   }
 
-  /// Which standard dofs users constrain (3 x nodes); rows no element couples are held too.
-  void set_constrained(const Body& body, const std::vector<char>& constrained) {
+  /// Which standard dofs users constrain (3 x nodes); rows no element couples are held too, and
+  /// the dofs in `also_held` (Heaviside enrichment: the enriched dofs of constrained nodes).
+  void set_constrained(const Body& body, const std::vector<char>& constrained, const std::vector<Index>& also_held = {}) {
     const Index n = body.num_dofs();
     const auto& coupled = body.assembler().coupled_rows();
     held_.assign(n, 0);
     constrained_.assign(n, 0);
     for (size_t d = 0; d < constrained.size(); ++d) held_[d] = constrained_[d] = constrained[d];
+    for (Index d : also_held) held_[d] = 1;
     for (Index r = 0; r < n / 3; ++r)
       if (!coupled[r]) held_[3 * r] = held_[3 * r + 1] = held_[3 * r + 2] = 1;
     blocks_ = ConstrainedBlocks(M.pattern(), held_);
@@ -165,6 +168,7 @@ class System {
  private:
   void build_mass(const Body& body, MassKind kind) {
     assemble_mass(body.mesh(), body.assembler(), body.material().density, kind, M);
+    if (!body.enrichment().empty()) body.add_enriched_mass(M, kind);
   }
 
   LinearSolver linear_, static_linear_;

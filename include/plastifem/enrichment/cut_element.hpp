@@ -1,0 +1,168 @@
+#pragma once
+// An enriched element (seed 001, section 4.3-4.4): what is integrated over its pieces, and how.
+//
+// The displacement in an element with enriched nodes (eq. 42):
+//     u(x) = sum_i N_i(x) u_i + sum_k N_{i(k)}(x) psi_k(x) a_k,
+// with psi_k the node's enrichment function: Heaviside, psi = H(x) = +-1 (eq. 43), or shifted,
+// psi_k = (H(x) - H_i) / 2 (eq. 44). On each side s of the cut psi_k is a constant psi_k^s, so
+// on side s the element is a standard element with effective nodal displacements
+//     u_i^s = u_i + sum_{k at node i} psi_k^s a_k.
+// Every integral over side s is therefore the standard element's integral over side s's
+// quadrature points with the nodes moved to x_i^s = X_i + u_i^s, and the enriched vectors and
+// matrices follow by the chain rule (d u_i^s / d a_k = psi_k^s):
+//     f_u_i = sum_s f_i^s,              f_a_k = sum_s psi_k^s f_{i(k)}^s,
+//     K_uu = sum_s K^s,   K_ua_(i,k) = sum_s psi_k^s K^s_(i, i(k)),   K_aa_(k,l) = sum_s psi_k^s psi_l^s K^s_(i(k), i(l)).
+// For the linear model this is eq. 51-57 (with Va / V, Vb / V the share of each side when B is
+// constant, eq. 54-57, and its shifted form eq. 60-63); for the corotational models each side has
+// its own rotation (eq. 64-71): per quadrature point for Corotational, one per side, from the
+// side's mean deformation gradient, for CorotationalPerElement; the hyperelastic models use their
+// point law on each side's points. The consistent mass (eq. 76-80) is the same construction with
+// m^s_ab = rho sum_q N_a N_b dv_q; the X-FEM lumped mass (eq. 81-82) keeps the element's lumped
+// standard diagonal and gives an enriched dof
+//     m_aa_k = (V_+ / V (psi_k^+)^2 + V_- / V (psi_k^-)^2) m_uu_i(k).
+//
+// A cut element has two sides, each with its sub-element quadrature (enrichment/subdivision.hpp);
+// an uncut element with enriched nodes (a "blending" element: with Heaviside enrichment every
+// element around an enriched node; with the shifted one only where a node lies on the cut) has
+// one side, the element's own Gauss rule, and constant psi.
+#include <plastifem/assembly/mass.hpp>
+#include <plastifem/elastic/elastic.hpp>
+#include <plastifem/enrichment/subdivision.hpp>
+
+#include <array>
+#include <vector>
+
+namespace plastifem {
+
+/// One enriched dof block of an element: the local node it sits at, its block row in the dof
+/// map, and its enrichment function's value on each side.
+struct EnrichedDof {
+  int node = 0;
+  Index row = 0;
+  std::array<Scalar, 2> psi{0, 0};
+};
+
+template <FiniteElement E>
+struct CutElement {
+  static constexpr int N = E::num_nodes;
+  /// The most enriched dofs an element may carry: two per node (its own cut, and a neighbour's
+  /// through blending).
+  static constexpr int max_enriched = 2 * N;
+  static constexpr int max_span = 3 * (N + max_enriched);
+  using SpanVector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, max_span, 1>;
+  using SpanMatrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, max_span, max_span>;
+
+  int num_sides = 1;                                   ///< 2: cut; 1: blending (one side, the element's rule)
+  int cut = -1;                                        ///< the cut that splits it (-1: none)
+  std::array<PointSet<E>, 2> stiffness;                ///< quadrature per side
+  std::array<std::vector<Vec3>, 2> mass_xi;            ///< mass rule per side: reference points
+  std::array<std::vector<Scalar>, 2> mass_dv;          ///< and their w det J
+  std::array<Scalar, 2> volume{0, 0};                  ///< rest volume of each side
+  std::array<std::vector<ReferenceTet>, 2> pieces;     ///< the sides' pieces (reference coordinates), for output
+  std::vector<EnrichedDof> enriched;                   ///< in the order of the element's extension rows
+
+  int span() const { return N + static_cast<int>(enriched.size()); }
+
+  /// Effective nodes of side s: x + sum psi^s a at the enriched dofs' nodes (a read from u).
+  ElementNodes<E> side_nodes(const ElementNodes<E>& x, const Vector& u, int s) const {
+    ElementNodes<E> y = x;
+    for (const EnrichedDof& d : enriched) y.col(d.node) += d.psi[s] * u.template segment<3>(3 * d.row);
+    return y;
+  }
+
+  /// Internal force (span vector) and tangent (span matrix, full) at current nodes x (X + u at
+  /// the element's nodes) and system displacement u (for the enriched dofs); returns the strain
+  /// energy, non-finite if a side cannot be evaluated.
+  template <class Model>
+  Scalar evaluate(const typename Model::Law& law, const ElementNodes<E>& x, const Vector& u, SpanVector& f,
+                  SpanMatrix* K, TangentKind kind) const {
+    const int S = span();
+    f.setZero(3 * S);
+    if (K) K->setZero(3 * S, 3 * S);
+    Scalar W = 0;
+    ElementVector<E> fs;
+    ElementMatrix<E> Ks;
+    for (int s = 0; s < num_sides; ++s) {
+      if (stiffness[s].size() == 0) continue;
+      W += Model::template evaluate_points<E>(law, stiffness[s], side_nodes(x, u, s), fs, K ? &Ks : nullptr, kind);
+      scatter(fs, K ? &Ks : nullptr, s, f, K);
+    }
+    return W;
+  }
+
+  /// The enriched part of the consistent mass (span matrix; the standard block, the element's
+  /// own mass, is left zero: the standard assembly has it), or the X-FEM lumped one (eq. 81-82)
+  /// given the element's lumped standard diagonal.
+  SpanMatrix enriched_mass(Scalar density, MassKind kind, const Eigen::Matrix<Scalar, N, 1>& lumped_diagonal) const {
+    const int S = span();
+    SpanMatrix M = SpanMatrix::Zero(3 * S, 3 * S);
+    const int n = static_cast<int>(enriched.size());
+    if (kind == MassKind::Lumped) {
+      const Scalar V = volume[0] + volume[1];
+      for (int k = 0; k < n; ++k) {
+        const EnrichedDof& d = enriched[k];
+        Scalar share = 0;
+        for (int s = 0; s < num_sides; ++s) share += (num_sides == 1 ? 1 : volume[s] / V) * d.psi[s] * d.psi[s];
+        M.template block<3, 3>(3 * (N + k), 3 * (N + k)) = share * lumped_diagonal[d.node] * Mat3::Identity();
+      }
+      return M;
+    }
+    for (int s = 0; s < num_sides; ++s) {
+      Eigen::Matrix<Scalar, N, N> m = Eigen::Matrix<Scalar, N, N>::Zero();
+      for (size_t q = 0; q < mass_xi[s].size(); ++q) {
+        const auto Nq = E::shape(mass_xi[s][q]);
+        m += (density * mass_dv[s][q]) * Nq * Nq.transpose();
+      }
+      for (int k = 0; k < n; ++k) {
+        const EnrichedDof& dk = enriched[k];
+        for (int b = 0; b < N; ++b) {  // a-u blocks and their transposes
+          const Scalar v = dk.psi[s] * m(dk.node, b);
+          M.template block<3, 3>(3 * (N + k), 3 * b) += v * Mat3::Identity();
+          M.template block<3, 3>(3 * b, 3 * (N + k)) += v * Mat3::Identity();
+        }
+        for (int l = 0; l < n; ++l) {
+          const EnrichedDof& dl = enriched[l];
+          M.template block<3, 3>(3 * (N + k), 3 * (N + l)) += dk.psi[s] * dl.psi[s] * m(dk.node, dl.node) * Mat3::Identity();
+        }
+      }
+    }
+    return M;
+  }
+
+  /// The enriched dofs' share of a body force per unit mass g: rho sum_s psi^s int_s N g with
+  /// the consistent mass; zero with the lumped one (whose loads are M_L times the field g,
+  /// represented by u = g, a = 0, so that the body falls at exactly g). Indexed by enriched dof.
+  std::vector<Vec3> enriched_body_force(Scalar density, const Vec3& g, MassKind kind) const {
+    std::vector<Vec3> F(enriched.size(), Vec3::Zero());
+    if (kind == MassKind::Lumped) return F;
+    for (int s = 0; s < num_sides; ++s)
+      for (size_t q = 0; q < mass_xi[s].size(); ++q) {
+        const auto Nq = E::shape(mass_xi[s][q]);
+        for (size_t k = 0; k < enriched.size(); ++k)
+          F[k] += density * mass_dv[s][q] * enriched[k].psi[s] * Nq[enriched[k].node] * g;
+      }
+    return F;
+  }
+
+ private:
+  /// Adds side s's standard-element force and tangent to the span's (see the file comment).
+  void scatter(const ElementVector<E>& fs, const ElementMatrix<E>* Ks, int s, SpanVector& f, SpanMatrix* K) const {
+    const int n = static_cast<int>(enriched.size());
+    f.template head<3 * N>() += fs;
+    for (int k = 0; k < n; ++k) f.template segment<3>(3 * (N + k)) += enriched[k].psi[s] * fs.template segment<3>(3 * enriched[k].node);
+    if (!K) return;
+    K->template topLeftCorner<3 * N, 3 * N>() += *Ks;
+    for (int k = 0; k < n; ++k) {
+      const EnrichedDof& dk = enriched[k];
+      K->block(3 * (N + k), 0, 3, 3 * N) += dk.psi[s] * Ks->template middleRows<3>(3 * dk.node);
+      K->block(0, 3 * (N + k), 3 * N, 3) += dk.psi[s] * Ks->template middleCols<3>(3 * dk.node);
+      for (int l = 0; l < n; ++l) {
+        const EnrichedDof& dl = enriched[l];
+        K->template block<3, 3>(3 * (N + k), 3 * (N + l)) +=
+            dk.psi[s] * dl.psi[s] * Ks->template block<3, 3>(3 * dk.node, 3 * dl.node);
+      }
+    }
+  }
+};
+
+}  // namespace plastifem

@@ -1,0 +1,400 @@
+#pragma once
+// Enrichment<E>: the cuts applied to a body and everything derived from them (seed 001,
+// section 4.3.3): nodal level sets, the cut-element set (eq. 73), the enriched nodes and their
+// dofs appended after the standard ones (eq. 74-75), and each enriched element's pieces and
+// enrichment functions (enrichment/cut_element.hpp).
+//
+// Applying a cut (apply):
+//  1. the level set (enrichment/level_set.hpp) at the nodes of the elements the cut surface
+//     meets; a node closer to the cut than `snap` times its elements' shortest edge is moved
+//     onto it (its level set set to 0): no sliver pieces, no near-singular enriched dofs;
+//  2. cut elements: those the surface's interior meets whose nodes' Heaviside signs differ
+//     (H = +1 for a level set >= 0, the thesis' "above the crack and on the crack line", -1
+//     below; eq. 73 with that convention): an element a surface ends inside is cut whole, and
+//     an element that touches a cut running along its face from below is a cut element with
+//     nothing above, so that a cut along element faces (or through nodes snapped onto it)
+//     separates the elements on either side exactly as duplicated nodes would;
+//  3. enriched nodes: the cut elements' nodes, except a node whose support (the elements around
+//     it) has less than `min_fragment` of its volume on one side of the cut: its enrichment
+//     would span a sliver (this also leaves out the nodes below a cut that runs along faces);
+//     and except a node at the cut's tip, whose support the surface does not cut through (the
+//     front of a slit: the material stays connected there, as at a crack tip);
+//  4. a new dof slot for each enriched node (dof_map.hpp: block rows after the standard ones),
+//     and the elements that couple them: the cut elements, split into pieces on either side,
+//     and the blending elements, uncut elements around an enriched node where its enrichment
+//     function is not zero (every such element for Heaviside enrichment; for the shifted one only
+//     where an enriched node lies on the cut and the element on its negative side).
+// Everything is computed first and committed only if the cut is valid: a cut that meets no
+// element, or an element that a second cut would cross (refused, named: one cut per element),
+// leaves the body unchanged.
+//
+// A growing cut (a blade moved over several steps) is the same cut applied again with its grown
+// surface (apply with the cut's id): elements it newly crosses are cut and their new nodes
+// enriched; what was cut stays cut as it was.
+#include <plastifem/assembly/dof_map.hpp>
+#include <plastifem/enrichment/cut_element.hpp>
+#include <plastifem/enrichment/level_set.hpp>
+#include <plastifem/mesh/mesh.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <map>
+#include <vector>
+
+namespace plastifem {
+
+/// How a cut is applied (defaults documented in enrichment/enrichment.hpp).
+struct CutOptions {
+  /// A node closer to the cut than snap x (the shortest edge of its elements) is moved onto it.
+  Scalar snap = 0.01;
+  /// A node whose support has less than this fraction of its volume on one side is not enriched.
+  Scalar min_fragment = 1e-4;
+
+  void validate() const {
+    if (!(snap >= 0 && snap < 0.5)) fail<InvalidArgument>("cut: snap = {} must be in [0, 0.5)", snap);
+    if (!(min_fragment >= 0 && min_fragment < 0.5))
+      fail<InvalidArgument>("cut: min_fragment = {} must be in [0, 0.5)", min_fragment);
+  }
+};
+
+/// Identifies a cut applied to a solver (to grow it later).
+struct CutHandle {
+  int id = -1;
+};
+
+/// What applying a cut did.
+struct CutReport {
+  int cut_elements = 0;       ///< elements the cut crosses (new ones, for a growing cut)
+  int blending_elements = 0;  ///< uncut elements that couple enriched dofs
+  int enriched_nodes = 0;     ///< nodes that got an enriched dof block (new ones)
+  int snapped_nodes = 0;      ///< nodes moved onto the cut (level set set to 0)
+  int dropped_nodes = 0;      ///< nodes of cut elements left unenriched (sliver support)
+  Index dofs_added = 0;
+  double ms = 0;              ///< time to classify, split and extend the dof map (not the solver's rebuild)
+};
+
+template <FiniteElement E>
+class Enrichment {
+ public:
+  static constexpr int N = E::num_nodes;
+  using Element = CutElement<E>;
+
+  Enrichment() = default;
+  explicit Enrichment(Index num_elements) : index_(num_elements, -1) {}
+
+  bool empty() const { return elements_.empty(); }
+  /// The enriched element data of element e, or null for a standard element.
+  const Element* element(Index e) const {
+    if (elements_.empty()) return nullptr;
+    const int k = index_[e];
+    return k < 0 ? nullptr : &elements_[k];
+  }
+  const std::vector<Element>& elements() const { return elements_; }
+  Index element_of(size_t k) const { return element_index_[k]; }
+  int num_cuts() const { return static_cast<int>(cuts_.size()); }
+  /// The level set of cut c at node i (NaN where it was not needed: far from the cut).
+  Scalar level_set(int c, Index i) const { return cuts_[c].phi[i]; }
+
+  /// Applies `surface` as a new cut (id < 0) or as the grown surface of cut `id` (see the file
+  /// comment). Throws InvalidArgument, with nothing changed, if the cut is refused.
+  CutReport apply(const Mesh<E>& mesh, DofMap& dofs, const Cut& surface, const CutOptions& opt, bool shifted, int id,
+                  int& applied_id) {
+    const auto t0 = std::chrono::steady_clock::now();
+    opt.validate();
+    if (id >= num_cuts()) fail<InvalidArgument>("cut: no cut with id {}", id);
+    const Index n = mesh.num_nodes(), ne = mesh.num_elements();
+    if (index_.empty()) index_.assign(ne, -1);
+    CutReport rep;
+    const int c = id >= 0 ? id : num_cuts();
+
+    // 1. Level set near the surface, element sizes, snapping.
+    std::vector<Scalar> phi(n, std::numeric_limits<Scalar>::quiet_NaN());
+    std::vector<Scalar> h_node(n, std::numeric_limits<Scalar>::max());
+    std::vector<char> meets(ne, 0);
+    std::vector<Scalar> moved(n, 0);   // how far a node was snapped (0: not, or by round-off only)
+    const Box bounds = cut_bounds(surface);
+    for (Index e = 0; e < ne; ++e) {
+      const ElementNodes<E> X = mesh.element_nodes(e);
+      Box b;
+      for (int a = 0; a < N; ++a) b.add(X.col(a));
+      Scalar h = std::numeric_limits<Scalar>::max();
+      for (const auto& ed : E::edges) h = std::min(h, (X.col(ed[0]) - X.col(ed[1])).norm());
+      // Inflated by the snap distance: a node snapped onto the cut makes its neighbours on the
+      // other side cut elements (a plane 1e-9 beyond a node layer cuts the layer behind it).
+      const Box near = b.inflated(std::max<Scalar>(1e-12, opt.snap) * h);
+      if (!near.overlaps(bounds) || !cut_meets(surface, near)) continue;
+      meets[e] = 1;
+      for (int a = 0; a < N; ++a) h_node[mesh.element(e)[a]] = std::min(h_node[mesh.element(e)[a]], h);
+    }
+    auto level_set_at = [&](Index i) {
+      if (std::isnan(phi[i])) {
+        phi[i] = signed_distance(surface, mesh.node(i));
+        if (h_node[i] < std::numeric_limits<Scalar>::max() && std::abs(phi[i]) < opt.snap * h_node[i] && phi[i] != 0) {
+          if (std::abs(phi[i]) > 1e-12 * h_node[i]) moved[i] = std::abs(phi[i]);
+          phi[i] = 0, ++rep.snapped_nodes;
+        }
+      }
+      return phi[i];
+    };
+    // 2. Cut elements.
+    std::vector<Index> cut;
+    for (Index e = 0; e < ne; ++e) {
+      if (!meets[e]) continue;
+      bool above = false, below = false;
+      for (int a = 0; a < N; ++a) (level_set_at(mesh.element(e)[a]) >= 0 ? above : below) = true;
+      if (!(above && below)) continue;
+      // The surface must meet the element's interior; a node snapped onto it counts as on it,
+      // so the box grows by (twice) the distance its nodes were moved.
+      Box b;
+      Scalar reach = 0;
+      for (int a = 0; a < N; ++a) b.add(mesh.node(mesh.element(e)[a])), reach = std::max(reach, moved[mesh.element(e)[a]]);
+      if (!cut_meets_interior(surface, reach > 0 ? b.inflated(2 * reach) : b)) continue;
+      const Element* old = element(e);
+      if (old && old->cut == c) continue;  // a growing cut: already cut by it
+      if (old && old->cut >= 0)
+        fail<InvalidArgument>("cut: element {} is already cut by cut {}; an element can be cut once (cut {} "
+                              "crosses it again)",
+                              e, old->cut, c);
+      cut.push_back(e);
+    }
+
+    // Pieces and side volumes of each newly cut element.
+    std::map<Index, std::array<std::vector<ReferenceTet>, 2>> pieces;
+    std::map<Index, std::array<Scalar, 2>> side_volume;
+    for (Index e : cut) {
+      std::array<Scalar, N> p;
+      for (int a = 0; a < N; ++a) p[a] = phi[mesh.element(e)[a]];
+      pieces[e] = split_element<E>(p);
+      const ElementNodes<E> X = mesh.element_nodes(e);
+      for (int s = 0; s < 2; ++s) {
+        const auto q = piece_quadrature<1>(pieces[e][s]);
+        Scalar v = 0;
+        for (size_t k = 0; k < q.xi.size(); ++k) v += q.w[k] * jacobian<E>(X, q.xi[k]).determinant();
+        side_volume[e][s] = v;
+      }
+    }
+    // 3. Enriched nodes: the new cut elements' nodes with both sides of their support above
+    //    min_fragment (sides of uncut elements by their nodes' signs).
+    std::vector<Index> candidates;
+    for (Index e : cut)
+      for (int a = 0; a < N; ++a) candidates.push_back(mesh.element(e)[a]);
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    CutRecord record = id >= 0 ? cuts_[c] : CutRecord{surface, std::vector<Scalar>(n, std::numeric_limits<Scalar>::quiet_NaN()),
+                                                      std::vector<Index>(n, -1), std::vector<signed char>(n, 0)};
+    record.geometry = surface;
+    const auto elements_of = node_elements(mesh);
+    std::vector<Index> enrich;
+    std::vector<Index> cut_sorted = cut;
+    std::sort(cut_sorted.begin(), cut_sorted.end());
+    for (Index i : candidates) {
+      if (record.row[i] >= 0) continue;  // already enriched by this cut
+      std::array<Scalar, 2> v{0, 0};
+      for (Index e : elements_of[i]) {
+        if (auto it = side_volume.find(e); it != side_volume.end()) {
+          v[0] += it->second[0], v[1] += it->second[1];
+        } else {
+          v[element_side(mesh, e, level_set_at)] += element_volume<E>(mesh.element_nodes(e));
+        }
+      }
+      if (std::min(v[0], v[1]) < opt.min_fragment * (v[0] + v[1])) {
+        ++rep.dropped_nodes;
+        continue;
+      }
+      // A node whose support the surface does not cut through (an element around it with nodes
+      // on both sides that the surface's interior does not meet: beyond the front of a slit) is
+      // at the cut's tip: left unenriched, as a crack tip's nodes are (the material stays
+      // connected there).
+      if (std::any_of(elements_of[i].begin(), elements_of[i].end(), [&](Index e) {
+            if (std::binary_search(cut_sorted.begin(), cut_sorted.end(), e) || (element(e) && element(e)->cut == c))
+              return false;
+            bool above = false, below = false;
+            for (int a = 0; a < N; ++a) (level_set_at(mesh.element(e)[a]) >= 0 ? above : below) = true;
+            return above && below;
+          }))
+        continue;
+      enrich.push_back(i);
+    }
+    if (enrich.empty() && id < 0)
+      fail<InvalidArgument>("cut: the surface separates no part of the body (it misses the mesh, or only touches it "
+                            "at its boundary); nothing was cut");
+    // Cut elements left with no enriched node (every node's support on one side) stay standard.
+    {
+      std::vector<char> enriched_node(n, 0);
+      for (Index i : enrich) enriched_node[i] = 1;
+      for (Index i = 0; i < n; ++i)
+        if (id >= 0 && cuts_[c].row[i] >= 0) enriched_node[i] = 1;
+      std::erase_if(cut, [&](Index e) {
+        for (int a = 0; a < N; ++a)
+          if (enriched_node[mesh.element(e)[a]]) return false;
+        return true;
+      });
+    }
+    // 4. Commit: nothing below throws for a valid mesh.
+    for (Index i : candidates)
+      if (!std::isnan(phi[i])) record.phi[i] = phi[i], record.H[i] = phi[i] >= 0 ? 1 : -1;
+    const Index dofs_before = dofs.num_dofs();
+    for (Index i : enrich) record.row[i] = dofs.add_slot(i);
+    rep.enriched_nodes = static_cast<int>(enrich.size());
+    if (id >= 0) cuts_[c] = std::move(record);
+    else cuts_.push_back(std::move(record));
+    applied_id = c;
+    const CutRecord& R = cuts_[c];
+    // The cut elements' sides and pieces.
+    for (Index e : cut) {
+      Element& el = element_for(e);
+      el.cut = c;
+      el.num_sides = 2;
+      const ElementNodes<E> X = mesh.element_nodes(e);
+      for (int s = 0; s < 2; ++s) {
+        el.pieces[s] = pieces[e][s];
+        el.stiffness[s] = point_set(X, pieces[e][s], stiffness_points);
+        const ReferencePoints m = mass_points(pieces[e][s]);
+        el.mass_xi[s] = m.xi;
+        el.mass_dv[s].resize(m.xi.size());
+        for (size_t k = 0; k < m.xi.size(); ++k) el.mass_dv[s][k] = m.w[k] * jacobian<E>(X, m.xi[k]).determinant();
+        el.volume[s] = side_volume[e][s];
+      }
+      // An element this cut now splits may already carry another cut's (blending) dofs: their
+      // psi is constant over the element, the same on both sides. (This cut's own older dofs,
+      // from a shorter surface, are given their values per side below.)
+      for (EnrichedDof& d : el.enriched) d.psi[1] = d.psi[0];
+    }
+    rep.cut_elements = static_cast<int>(cut.size());
+    // Enriched dofs of this cut on every element around its new enriched nodes and on every
+    // newly cut element (whose older dofs of this cut, from when it was a blending element of a
+    // shorter cut, now take their value per side).
+    std::vector<char> touched(ne, 0);
+    for (Index i : enrich)
+      for (Index e : elements_of[i]) touched[e] = 1;
+    for (Index e : cut) touched[e] = 1;
+    for (Index e = 0; e < ne; ++e) {
+      if (!touched[e]) continue;
+      const Element* existing = element(e);
+      const bool split = existing && existing->cut == c;
+      const int side = split ? 0 : element_side(mesh, e, level_set_at);
+      const auto& conn = mesh.element(e);
+      std::vector<EnrichedDof> add;
+      std::vector<std::pair<size_t, std::array<Scalar, 2>>> update;
+      for (int a = 0; a < N; ++a) {
+        const Index i = conn[a];
+        if (R.row[i] < 0) continue;
+        EnrichedDof d{a, R.row[i], {0, 0}};
+        for (int s = 0; s < 2; ++s) {
+          const Scalar Hs = (split ? s : side) == 0 ? 1.0 : -1.0;
+          d.psi[s] = shifted ? 0.5 * (Hs - R.H[i]) : Hs;
+        }
+        const auto it = existing ? std::find_if(existing->enriched.begin(), existing->enriched.end(),
+                                                [&](const EnrichedDof& x) { return x.row == d.row; })
+                                 : std::vector<EnrichedDof>::const_iterator{};
+        if (existing && it != existing->enriched.end()) {
+          if (split) update.emplace_back(static_cast<size_t>(it - existing->enriched.begin()), d.psi);
+          continue;
+        }
+        if (d.psi[0] == 0 && d.psi[1] == 0) continue;
+        add.push_back(d);
+      }
+      if (add.empty() && update.empty()) continue;
+      Element& el = element_for(e);
+      for (const auto& [k, psi] : update) el.enriched[k].psi = psi;
+      if (add.empty()) continue;
+      if (!split && el.enriched.empty()) {  // a new blending element: its own Gauss rule
+        const ElementNodes<E> X = mesh.element_nodes(e);
+        el.num_sides = 1;
+        el.stiffness[0] = gauss_point_set<E>(X);
+        const auto q = E::template quadrature<E::mass_degree>();
+        el.mass_xi[0].clear(), el.mass_dv[0].clear();
+        for (int k = 0; k < q.size; ++k) {
+          el.mass_xi[0].push_back(q.points[k]);
+          el.mass_dv[0].push_back(q.weights[k] * jacobian<E>(X, q.points[k]).determinant());
+        }
+        el.volume = {element_volume<E>(X), 0};
+        ++rep.blending_elements;
+      }
+      if (el.num_sides == 1)
+        for (EnrichedDof& d : add) d.psi[1] = d.psi[0];
+      if (static_cast<int>(el.enriched.size() + add.size()) > Element::max_enriched)
+        fail<InvalidArgument>("cut: element {} would carry {} enriched dofs (at most {})", e,
+                              el.enriched.size() + add.size(), Element::max_enriched);
+      el.enriched.insert(el.enriched.end(), add.begin(), add.end());
+    }
+    // The elements' spans in the dof map, in their enriched dofs' order.
+    for (size_t k = 0; k < elements_.size(); ++k) {
+      std::vector<Index> rows;
+      for (const EnrichedDof& d : elements_[k].enriched) rows.push_back(d.row);
+      if (!rows.empty() && std::vector<Index>(dofs.extension(element_index_[k]).begin(),
+                                              dofs.extension(element_index_[k]).end()) != rows)
+        dofs.extend_element(element_index_[k], rows);
+    }
+    rep.dofs_added = dofs.num_dofs() - dofs_before;
+    rep.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+  }
+
+  /// Node i's enriched block row for cut c (-1: none), and its Heaviside sign H_i (+1 on or
+  /// above the cut, -1 below).
+  Index row(int c, Index i) const { return cuts_[c].row[i]; }
+  Scalar sign(int c, Index i) const { return cuts_[c].H[i] < 0 ? -1.0 : 1.0; }
+
+  /// The enriched dofs of node i (rows), over every cut.
+  std::vector<Index> rows_of(Index i) const {
+    std::vector<Index> r;
+    for (const CutRecord& c : cuts_)
+      if (c.row[i] >= 0) r.push_back(c.row[i]);
+    return r;
+  }
+
+ private:
+  struct CutRecord {
+    Cut geometry;
+    std::vector<Scalar> phi;         ///< per node (NaN: not needed)
+    std::vector<Index> row;          ///< per node: its enriched block row, -1 if none
+    std::vector<signed char> H;      ///< per node: the Heaviside sign (0: not computed)
+  };
+
+  /// The quadrature degrees of linear elasticity's integrands (enrichment/subdivision.hpp).
+  static constexpr int stiffness_degree = E::num_nodes == 4 ? 1 : (E::num_nodes == 10 ? 2 : 4);
+  static constexpr int mass_degree = E::num_nodes == 4 ? 2 : (E::num_nodes == 10 ? 4 : 5);
+  static ReferencePoints stiffness_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<stiffness_degree>(p); }
+  static ReferencePoints mass_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<mass_degree>(p); }
+
+  template <class Rule>
+  static PointSet<E> point_set(const ElementNodes<E>& X, const std::vector<ReferenceTet>& pieces, Rule rule) {
+    const ReferencePoints r = rule(pieces);
+    PointSet<E> ps;
+    for (size_t k = 0; k < r.xi.size(); ++k) ps.add(X, r.xi[k], r.w[k]);
+    return ps;
+  }
+
+  /// The side of an uncut element: 0 if all its nodes are on or above the cut, else 1.
+  template <class LevelSet>
+  static int element_side(const Mesh<E>& mesh, Index e, LevelSet& level_set_at) {
+    for (int a = 0; a < N; ++a)
+      if (level_set_at(mesh.element(e)[a]) < 0) return 1;
+    return 0;
+  }
+
+  static std::vector<std::vector<Index>> node_elements(const Mesh<E>& mesh) {
+    std::vector<std::vector<Index>> r(mesh.num_nodes());
+    for (Index e = 0; e < mesh.num_elements(); ++e)
+      for (int a = 0; a < N; ++a) r[mesh.element(e)[a]].push_back(e);
+    return r;
+  }
+
+  Element& element_for(Index e) {
+    if (index_[e] < 0) {
+      index_[e] = static_cast<int>(elements_.size());
+      elements_.emplace_back();
+      element_index_.push_back(e);
+    }
+    return elements_[index_[e]];
+  }
+
+  std::vector<int> index_;             ///< per element: into elements_, -1 for a standard one
+  std::vector<Element> elements_;
+  std::vector<Index> element_index_;   ///< elements_[k] is element element_index_[k]
+  std::vector<CutRecord> cuts_;
+};
+
+}  // namespace plastifem

@@ -1,0 +1,31 @@
+#pragma once
+// The enrichment axis of the composition: the EnrichmentModel concept and its three policies.
+//
+//   NoEnrichment       no cut; compiles to nothing
+//   Heaviside          seed 001, eq. 43: enriched functions N_i H(x)
+//   ShiftedHeaviside   seed 001, eq. 44: N_i (H(x) - H_i) / 2, local to the cut elements
+//
+// Cuts are applied with Solver::cut (a plane, a bounded patch or a triangulated surface,
+// enrichment/level_set.hpp), any number of times during a run; what a cut does to the body is in
+// enrichment/enrichment.hpp, the enriched element integrals in enrichment/cut_element.hpp, the
+// sub-element quadrature in enrichment/subdivision.hpp, and the output that shows the opened cut
+// in enrichment/output.hpp.
+#include <plastifem/enrichment/heaviside.hpp>
+#include <plastifem/enrichment/none.hpp>
+#include <plastifem/enrichment/shifted.hpp>
+
+#include <concepts>
+
+namespace plastifem {
+
+template <class P>
+concept EnrichmentModel = requires {
+  { P::name } -> std::convertible_to<const char*>;
+  { P::active } -> std::convertible_to<bool>;
+  { P::shifted } -> std::convertible_to<bool>;
+  typename P::Params;
+} && (!P::active || std::same_as<typename P::Params, CutOptions>);
+
+static_assert(EnrichmentModel<NoEnrichment> && EnrichmentModel<Heaviside> && EnrichmentModel<ShiftedHeaviside>);
+
+}  // namespace plastifem

@@ -1,0 +1,270 @@
+#pragma once
+// Cut surfaces and their level sets (seed 001, eq. 72-73): the signed distance
+//     Lambda(x) = +-min_{x* in Gamma_cut} |x - x*|
+// to a cut surface Gamma_cut, positive on the side its normal points to ("above the cut").
+//
+//  - CutPlane: an infinite plane through a point with a normal;
+//  - CutPatch: a bounded planar patch, the parallelogram origin + s e1 + t e2, s, t in [0, 1]
+//    (the thesis' rectangle S_cut); its sign is its plane's;
+//  - CutSurface: a triangulated surface, open or closed, with consistently oriented triangles;
+//    the sign of the distance comes from the angle-weighted pseudo-normal of the closest
+//    feature (face, edge or vertex; Baerentzen and Aanaes 2005), which is robust where the
+//    closest point is an edge or a vertex: for a closed surface the sign is inside/outside
+//    exactly, for an open one it is the side of the nearest part of the surface.
+//
+// Each also says whether it meets an axis-aligned box (the elements' bounding boxes): with a
+// sign change of the nodal level set (eq. 73) this makes an element cut; the sign alone would
+// also cut the elements beyond a bounded surface's edge. A surface whose edge ends inside an
+// element cuts that element whole (the thesis: "we let a cutting surface which partially
+// intersects an element continue through it").
+//
+// Construction validates: finite coordinates, a non-zero normal, a patch of non-zero area, a
+// surface with at least one triangle of non-zero area and no index out of range.
+#include <plastifem/core/error.hpp>
+#include <plastifem/core/types.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <utility>
+#include <variant>
+#include <vector>
+
+namespace plastifem {
+
+/// An axis-aligned box [lo, hi].
+struct Box {
+  Vec3 lo = Vec3::Constant(std::numeric_limits<Scalar>::max());
+  Vec3 hi = Vec3::Constant(std::numeric_limits<Scalar>::lowest());
+  void add(const Vec3& p) { lo = lo.cwiseMin(p), hi = hi.cwiseMax(p); }
+  Box inflated(Scalar d) const { return {lo.array() - d, hi.array() + d}; }
+  bool overlaps(const Box& b) const { return (lo.array() <= b.hi.array()).all() && (b.lo.array() <= hi.array()).all(); }
+};
+
+namespace detail {
+
+/// Whether the triangle (a, b, c) meets the box (separating-axis test: the box's three axes,
+/// the triangle's normal, and the nine cross products of edges; Akenine-Moeller 2001).
+inline bool triangle_meets_box(const Vec3& a, const Vec3& b, const Vec3& c, const Box& box) {
+  const Vec3 centre = 0.5 * (box.lo + box.hi), half = 0.5 * (box.hi - box.lo);
+  const Vec3 v0 = a - centre, v1 = b - centre, v2 = c - centre;
+  const Vec3 e[3] = {v1 - v0, v2 - v1, v0 - v2};
+  auto separated = [&](const Vec3& axis) {
+    if (axis.squaredNorm() < 1e-300) return false;
+    const Scalar p0 = axis.dot(v0), p1 = axis.dot(v1), p2 = axis.dot(v2);
+    const Scalar r = half.x() * std::abs(axis.x()) + half.y() * std::abs(axis.y()) + half.z() * std::abs(axis.z());
+    return std::min({p0, p1, p2}) > r || std::max({p0, p1, p2}) < -r;
+  };
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (separated(Vec3::Unit(j).cross(e[i]))) return false;
+  for (int j = 0; j < 3; ++j)
+    if (separated(Vec3::Unit(j))) return false;
+  return !separated(e[0].cross(e[1]));
+}
+
+/// The closest point of triangle (a, b, c) to p, and which feature it lies on: 0 the face,
+/// 1-3 the edges ab, bc, ca, 4-6 the vertices a, b, c (Ericson, Real-Time Collision Detection,
+/// 5.1.5).
+inline Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, int& feature) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const Scalar d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return feature = 4, a;
+  const Vec3 bp = p - b;
+  const Scalar d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return feature = 5, b;
+  const Scalar vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return feature = 1, Vec3(a + d1 / (d1 - d3) * ab);
+  const Vec3 cp = p - c;
+  const Scalar d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return feature = 6, c;
+  const Scalar vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return feature = 3, Vec3(a + d2 / (d2 - d6) * ac);
+  const Scalar va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return feature = 2, Vec3(b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b));
+  const Scalar denom = 1 / (va + vb + vc);
+  return feature = 0, Vec3(a + ab * (vb * denom) + ac * (vc * denom));
+}
+
+inline void check_finite_point(const Vec3& p, const char* what) {
+  if (!p.allFinite()) fail<InvalidArgument>("{}: coordinates must be finite, got ({}, {}, {})", what, p.x(), p.y(), p.z());
+}
+
+}  // namespace detail
+
+/// An infinite cutting plane through `point` with normal `normal` (not necessarily unit).
+struct CutPlane {
+  Vec3 point = Vec3::Zero(), normal = Vec3::UnitZ();
+
+  CutPlane() = default;
+  CutPlane(const Vec3& p, const Vec3& n) : point(p), normal(n) {
+    detail::check_finite_point(p, "cut plane point");
+    detail::check_finite_point(n, "cut plane normal");
+    if (!(n.norm() > 0)) fail<InvalidArgument>("cut plane: the normal is zero");
+    normal = n.normalized();
+  }
+  Scalar signed_distance(const Vec3& x) const { return normal.dot(x - point); }
+  bool meets(const Box& box) const {
+    // The box's corners on both sides (or on the plane).
+    Scalar lo = std::numeric_limits<Scalar>::max(), hi = std::numeric_limits<Scalar>::lowest();
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 c((k & 1) ? box.hi.x() : box.lo.x(), (k & 2) ? box.hi.y() : box.lo.y(), (k & 4) ? box.hi.z() : box.lo.z());
+      const Scalar d = signed_distance(c);
+      lo = std::min(lo, d), hi = std::max(hi, d);
+    }
+    return lo <= 0 && hi >= 0;
+  }
+  Box bounds() const { return {Vec3::Constant(-std::numeric_limits<Scalar>::max()), Vec3::Constant(std::numeric_limits<Scalar>::max())}; }
+};
+
+/// A bounded planar cut: the parallelogram origin + s e1 + t e2, s, t in [0, 1]; positive on
+/// the side of e1 x e2.
+struct CutPatch {
+  Vec3 origin = Vec3::Zero(), e1 = Vec3::UnitX(), e2 = Vec3::UnitY();
+
+  CutPatch() = default;
+  CutPatch(const Vec3& o, const Vec3& a, const Vec3& b) : origin(o), e1(a), e2(b) {
+    detail::check_finite_point(o, "cut patch origin");
+    detail::check_finite_point(a, "cut patch edge");
+    detail::check_finite_point(b, "cut patch edge");
+    if (!(a.cross(b).norm() > 1e-14 * a.norm() * b.norm()) || !(a.norm() > 0) || !(b.norm() > 0))
+      fail<InvalidArgument>("cut patch: its edges ({}, {}, {}) and ({}, {}, {}) span no area", a.x(), a.y(), a.z(), b.x(),
+                            b.y(), b.z());
+  }
+  Vec3 normal() const { return e1.cross(e2).normalized(); }
+  /// The patch's plane's side, and the distance to the patch.
+  Scalar signed_distance(const Vec3& x) const {
+    const Vec3 n = normal();
+    const Scalar h = n.dot(x - origin);
+    // Closest point: on the patch's two triangles.
+    int f;
+    const Vec3 p1 = detail::closest_on_triangle(x, origin, origin + e1, origin + e1 + e2, f);
+    const Vec3 p2 = detail::closest_on_triangle(x, origin, origin + e1 + e2, origin + e2, f);
+    const Scalar d = std::min((x - p1).norm(), (x - p2).norm());
+    return h >= 0 ? d : -d;
+  }
+  bool meets(const Box& box) const {
+    return detail::triangle_meets_box(origin, origin + e1, origin + e1 + e2, box) ||
+           detail::triangle_meets_box(origin, origin + e1 + e2, origin + e2, box);
+  }
+  /// Whether the patch's interior (shrunk by 1e-9 of its edges) meets the box: an element that
+  /// only touches the patch's boundary (the front of a slit) is not cut by it.
+  bool meets_interior(const Box& box) const {
+    const Scalar eps = 1e-9;
+    return CutPatch(origin + eps * (e1 + e2), (1 - 2 * eps) * e1, (1 - 2 * eps) * e2).meets(box);
+  }
+  Box bounds() const {
+    Box b;
+    for (const Vec3& p : {origin, Vec3(origin + e1), Vec3(origin + e2), Vec3(origin + e1 + e2)}) b.add(p);
+    return b;
+  }
+};
+
+/// A triangulated cut surface, open or closed: vertices and counter-clockwise triangles
+/// (their normals, by the right-hand rule, point to the positive side).
+class CutSurface {
+ public:
+  CutSurface() = default;
+  CutSurface(std::vector<Vec3> vertices, std::vector<std::array<Index, 3>> triangles)
+      : v_(std::move(vertices)), t_(std::move(triangles)) {
+    if (t_.empty()) fail<InvalidArgument>("cut surface: no triangles");
+    for (size_t i = 0; i < v_.size(); ++i)
+      if (!v_[i].allFinite()) fail<InvalidArgument>("cut surface: vertex {} is not finite", i);
+    Scalar area = 0;
+    for (size_t k = 0; k < t_.size(); ++k) {
+      for (Index i : t_[k])
+        if (i < 0 || static_cast<size_t>(i) >= v_.size())
+          fail<InvalidArgument>("cut surface: triangle {} has vertex {} out of range [0, {})", k, i, v_.size());
+      area += face_normal(k).norm();
+    }
+    if (!(area > 0)) fail<InvalidArgument>("cut surface: all {} triangles have zero area", t_.size());
+    build_pseudo_normals();
+    for (const Vec3& p : v_) bounds_.add(p);
+  }
+  const std::vector<Vec3>& vertices() const { return v_; }
+  const std::vector<std::array<Index, 3>>& triangles() const { return t_; }
+
+  /// Signed distance by the closest triangle's pseudo-normal (see the file comment).
+  Scalar signed_distance(const Vec3& x) const {
+    Scalar best = std::numeric_limits<Scalar>::max();
+    Vec3 normal = Vec3::Zero(), closest = Vec3::Zero();
+    for (size_t k = 0; k < t_.size(); ++k) {
+      const auto& t = t_[k];
+      int feature = 0;
+      const Vec3 p = detail::closest_on_triangle(x, v_[t[0]], v_[t[1]], v_[t[2]], feature);
+      const Scalar d = (x - p).squaredNorm();
+      if (d < best) {
+        best = d, closest = p;
+        if (feature == 0) normal = face_normal(k);
+        else if (feature <= 3) normal = edge_normal(t[feature - 1], t[feature % 3]);
+        else normal = vertex_normal_[t[feature - 4]];
+      }
+    }
+    const Scalar d = std::sqrt(best);
+    return normal.dot(x - closest) >= 0 ? d : -d;
+  }
+  bool meets(const Box& box) const {
+    if (!bounds_.overlaps(box)) return false;
+    for (const auto& t : t_)
+      if (detail::triangle_meets_box(v_[t[0]], v_[t[1]], v_[t[2]], box)) return true;
+    return false;
+  }
+  Box bounds() const { return bounds_; }
+
+ private:
+  Vec3 face_normal(size_t k) const {
+    const auto& t = t_[k];
+    return (v_[t[1]] - v_[t[0]]).cross(v_[t[2]] - v_[t[0]]);  // |n| = twice the area
+  }
+  Vec3 edge_normal(Index a, Index b) const {
+    const auto it = edge_normal_.find({std::min(a, b), std::max(a, b)});
+    return it == edge_normal_.end() ? Vec3::Zero() : it->second;
+  }
+  void build_pseudo_normals() {
+    vertex_normal_.assign(v_.size(), Vec3::Zero());
+    for (size_t k = 0; k < t_.size(); ++k) {
+      const Vec3 n = face_normal(k);
+      if (!(n.norm() > 0)) continue;
+      const Vec3 u = n.normalized();
+      const auto& t = t_[k];
+      for (int c = 0; c < 3; ++c) {
+        const Index a = t[c], b = t[(c + 1) % 3], p = t[(c + 2) % 3];
+        // Angle-weighted vertex normals; edges get the sum of their faces' unit normals.
+        const Vec3 e1 = (v_[b] - v_[a]).normalized(), e2 = (v_[p] - v_[a]).normalized();
+        vertex_normal_[a] += std::acos(std::clamp(e1.dot(e2), Scalar(-1), Scalar(1))) * u;
+        // (Eigen leaves a default-constructed Vec3 uninitialised: start the sum at zero.)
+        edge_normal_.try_emplace({std::min(a, b), std::max(a, b)}, Vec3::Zero()).first->second += u;
+      }
+    }
+  }
+
+  std::vector<Vec3> v_;
+  std::vector<std::array<Index, 3>> t_;
+  std::vector<Vec3> vertex_normal_;
+  std::map<std::pair<Index, Index>, Vec3> edge_normal_;
+  Box bounds_;
+};
+
+/// Any of the three cut geometries.
+using Cut = std::variant<CutPlane, CutPatch, CutSurface>;
+
+inline Scalar signed_distance(const Cut& c, const Vec3& x) {
+  return std::visit([&](const auto& s) { return s.signed_distance(x); }, c);
+}
+inline bool cut_meets(const Cut& c, const Box& box) {
+  return std::visit([&](const auto& s) { return s.meets(box); }, c);
+}
+/// Whether the cut's interior meets the box (a patch's boundary does not count).
+inline bool cut_meets_interior(const Cut& c, const Box& box) {
+  if (const auto* p = std::get_if<CutPatch>(&c)) return p->meets_interior(box);
+  return cut_meets(c, box);
+}
+inline Box cut_bounds(const Cut& c) {
+  return std::visit([](const auto& s) { return s.bounds(); }, c);
+}
+
+}  // namespace plastifem

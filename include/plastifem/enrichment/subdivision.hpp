@@ -1,0 +1,146 @@
+#pragma once
+// Sub-element integration of a cut element (seed 001, section 5.2, Fig. 5-6): the element is
+// split, in its reference coordinates, into sub-tetrahedra on either side of the cut, each with
+// its own quadrature points and weights.
+//
+// 1. The reference element is decomposed into reference tetrahedra whose vertices are element
+//    nodes: Tet4 itself; Tet10 into 8 (its four corner tetrahedra and the inner octahedron split
+//    along the 6-8 diagonal); Hex8 into the 6 tetrahedra around its 0-6 diagonal (the Kuhn
+//    split).
+// 2. On each of them the level set is the linear interpolant of its vertices' nodal values, and
+//    the tetrahedron is split by that plane: the thesis' case analysis by the signs of the four
+//    values (+ - - -: a tetrahedron and a prism; + + - -: two prisms; with a vertex on the cut
+//    (value 0): a tetrahedron and a pyramid, or two tetrahedra; all of one sign: uncut), every
+//    prism into 3 tetrahedra and every pyramid into 2. A value of exactly 0 counts as +
+//    (the thesis: "above the crack and on the crack line"); the zero-volume pieces this makes
+//    are dropped.
+// 3. Each piece gets the tetrahedron rule of the degree asked for, mapped to the element's
+//    reference coordinates; the weights carry the piece's reference volume.
+//
+// What the cut is then: for Tet4, and for any element whose geometry map is affine (a
+// parallelepiped Hex8, a straight-edged Tet10) cut by a plane, the nodal signed distances are
+// linear in reference coordinates and the split is the exact plane. Otherwise (a curved cut
+// surface, a distorted Hex8, a curved Tet10) the cut inside the element is the piecewise-planar
+// interpolant of the nodal level set on the reference sub-tetrahedra: exact at the nodes, second
+// order in the element size.
+//
+// Exactness: on each piece the rule integrates polynomials of its degree in reference
+// coordinates exactly. The solver asks for the degrees of linear elasticity's integrands
+// (enrichment/cut_element.hpp): Tet4 stiffness 0 and mass 2, Tet10 2 and 4, Hex8 4 and 5 (the
+// Hex8 mass integrand has degree 6 on a parallelepiped; the rules are tabulated to degree 5: a
+// relative error of ~1e-4 in the masses of the cut element's enriched dofs).
+#include <plastifem/element/element.hpp>
+
+#include <array>
+#include <cmath>
+#include <vector>
+
+namespace plastifem {
+
+/// A reference sub-tetrahedron: four points in the element's reference coordinates.
+using ReferenceTet = std::array<Vec3, 4>;
+
+/// The element's decomposition into reference tetrahedra with element nodes as vertices.
+template <FiniteElement E>
+std::vector<std::array<int, 4>> reference_tetrahedra() {
+  if constexpr (E::num_nodes == 4) {
+    return {{0, 1, 2, 3}};
+  } else if constexpr (E::num_nodes == 10) {
+    return {{0, 4, 6, 7}, {4, 1, 5, 8}, {6, 5, 2, 9}, {7, 8, 9, 3},
+            {6, 8, 4, 5}, {6, 8, 5, 9}, {6, 8, 9, 7}, {6, 8, 7, 4}};
+  } else {
+    static_assert(E::num_nodes == 8, "reference_tetrahedra: Tet4, Tet10 or Hex8");
+    return {{0, 1, 2, 6}, {0, 1, 5, 6}, {0, 3, 2, 6}, {0, 3, 7, 6}, {0, 4, 5, 6}, {0, 4, 7, 6}};
+  }
+}
+
+inline Scalar tet_volume(const ReferenceTet& t) {
+  return std::abs((t[1] - t[0]).cross(t[2] - t[0]).dot(t[3] - t[0])) / 6;
+}
+
+/// The pieces of one reference tetrahedron on the side phi >= 0 (`positive`) or phi < 0.
+/// Appends to `out`; zero-volume pieces are left out.
+inline void split_tetrahedron(const ReferenceTet& v, const std::array<Scalar, 4>& phi, std::vector<ReferenceTet>& plus,
+                              std::vector<ReferenceTet>& minus) {
+  std::array<int, 4> p{}, m{};  // vertices on each side (phi == 0 counts as +)
+  int np = 0, nm = 0;
+  for (int k = 0; k < 4; ++k) (phi[k] >= 0 ? p[np++] : m[nm++]) = k;
+  const Scalar tiny = 1e-14 * tet_volume(v);
+  auto push = [&](std::vector<ReferenceTet>& out, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+    const ReferenceTet t{a, b, c, d};
+    if (tet_volume(t) > tiny) out.push_back(t);
+  };
+  // The point on edge (i, j) where the linear level set vanishes (i on one side, j on the other).
+  auto cut = [&](int i, int j) {
+    const Scalar t = phi[i] / (phi[i] - phi[j]);
+    return Vec3(v[i] + t * (v[j] - v[i]));
+  };
+  // A prism with triangles (a0 a1 a2) and (b0 b1 b2), edges ak-bk: three tetrahedra.
+  auto prism = [&](std::vector<ReferenceTet>& out, const Vec3& a0, const Vec3& a1, const Vec3& a2, const Vec3& b0,
+                   const Vec3& b1, const Vec3& b2) {
+    push(out, a0, a1, a2, b0);
+    push(out, a1, a2, b0, b1);
+    push(out, a2, b0, b1, b2);
+  };
+  if (nm == 0) return push(plus, v[0], v[1], v[2], v[3]);
+  if (np == 0) return push(minus, v[0], v[1], v[2], v[3]);
+  if (np == 1) {  // + - - -: a tetrahedron above, a prism below
+    const int a = p[0];
+    const Vec3 q0 = cut(a, m[0]), q1 = cut(a, m[1]), q2 = cut(a, m[2]);
+    push(plus, v[a], q0, q1, q2);
+    prism(minus, q0, q1, q2, v[m[0]], v[m[1]], v[m[2]]);
+  } else if (nm == 1) {  // + + + -: a prism above, a tetrahedron below
+    const int b = m[0];
+    const Vec3 q0 = cut(p[0], b), q1 = cut(p[1], b), q2 = cut(p[2], b);
+    push(minus, v[b], q0, q1, q2);
+    prism(plus, q0, q1, q2, v[p[0]], v[p[1]], v[p[2]]);
+  } else {  // + + - -: two prisms
+    const int a0 = p[0], a1 = p[1], b0 = m[0], b1 = m[1];
+    const Vec3 q00 = cut(a0, b0), q01 = cut(a0, b1), q10 = cut(a1, b0), q11 = cut(a1, b1);
+    prism(plus, v[a0], q00, q01, v[a1], q10, q11);
+    prism(minus, v[b0], q00, q10, v[b1], q01, q11);
+  }
+}
+
+/// Quadrature points of a set of reference pieces: reference coordinates and weights.
+struct ReferencePoints {
+  std::vector<Vec3> xi;
+  std::vector<Scalar> w;
+  Scalar volume() const {
+    Scalar s = 0;
+    for (Scalar x : w) s += x;
+    return s;
+  }
+};
+
+/// The tetrahedron rule of `Degree` on each piece, in the element's reference coordinates.
+template <int Degree>
+ReferencePoints piece_quadrature(const std::vector<ReferenceTet>& pieces) {
+  const auto q = TetrahedronQuadrature::quadrature<Degree>();
+  ReferencePoints r;
+  for (const ReferenceTet& t : pieces) {
+    Mat3 A;
+    A << t[1] - t[0], t[2] - t[0], t[3] - t[0];
+    const Scalar det = std::abs(A.determinant());
+    for (int k = 0; k < q.size; ++k) {
+      r.xi.push_back(t[0] + A * q.points[k]);
+      r.w.push_back(q.weights[k] * det);
+    }
+  }
+  return r;
+}
+
+/// The two sides of an element cut by a level set with nodal values phi: its reference pieces
+/// on each side (phi >= 0: side 0, "above"; phi < 0: side 1, "below").
+template <FiniteElement E>
+std::array<std::vector<ReferenceTet>, 2> split_element(const std::array<Scalar, E::num_nodes>& phi) {
+  std::array<std::vector<ReferenceTet>, 2> sides;
+  const auto Xref = E::reference_nodes();
+  for (const auto& t : reference_tetrahedra<E>()) {
+    const ReferenceTet v{Vec3(Xref.col(t[0])), Vec3(Xref.col(t[1])), Vec3(Xref.col(t[2])), Vec3(Xref.col(t[3]))};
+    split_tetrahedron(v, {phi[t[0]], phi[t[1]], phi[t[2]], phi[t[3]]}, sides[0], sides[1]);
+  }
+  return sides;
+}
+
+}  // namespace plastifem
