@@ -56,7 +56,7 @@ if [ "$what" = sanitize ]; then
   san="-O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer"
   cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="$san" \
         -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
-        -DPLASTIFEM_BUILD_EXAMPLES=OFF -DPLASTIFEM_BUILD_BENCH=OFF
+        -DPLASTIFEM_BUILD_EXAMPLES=OFF -DPLASTIFEM_BUILD_BENCH=OFF -DPLASTIFEM_COMPILED_POLICIES=OFF
   targets=()
   for t in "${sanitize_tests[@]}"; do [ -f "tests/$t.cpp" ] && targets+=("$t"); done
   cmake --build "$build" -j "$jobs" --target "${targets[@]}"

@@ -3,6 +3,11 @@
 #include <plastifem/plastifem.hpp>
 
 #define PLASTIFEM_INSTANTIATE_SOLVER(E, M) template class plastifem::Solver<plastifem::E, plastifem::M>;
+#ifdef PLASTIFEM_COMPILED_ELASTIC_ONLY  // PLASTIFEM_COMPILED_POLICIES=OFF: the elastic types only
+#define PLASTIFEM_INSTANTIATE_PLASTIC_SOLVER(E, M, P)
+#define PLASTIFEM_INSTANTIATE_ENRICHED_SOLVER(E, M, X)
+#else
 #define PLASTIFEM_INSTANTIATE_PLASTIC_SOLVER(E, M, P) template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P>;
 #define PLASTIFEM_INSTANTIATE_ENRICHED_SOLVER(E, M, X) \
   template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::NoPlasticity, plastifem::X>;
+#endif

@@ -98,6 +98,7 @@
 #define PLASTIFEM_EXTERN_SOLVER(E, M) extern template class plastifem::Solver<plastifem::E, plastifem::M>;
 PLASTIFEM_COMMON_SOLVERS(PLASTIFEM_EXTERN_SOLVER)
 #undef PLASTIFEM_EXTERN_SOLVER
+#ifndef PLASTIFEM_COMPILED_ELASTIC_ONLY  // a library built with PLASTIFEM_COMPILED_POLICIES=OFF
 #define PLASTIFEM_EXTERN_PLASTIC_SOLVER(E, M, P) \
   extern template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P>;
 PLASTIFEM_PLASTIC_SOLVERS(PLASTIFEM_EXTERN_PLASTIC_SOLVER)
@@ -106,4 +107,5 @@ PLASTIFEM_PLASTIC_SOLVERS(PLASTIFEM_EXTERN_PLASTIC_SOLVER)
   extern template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::NoPlasticity, plastifem::X>;
 PLASTIFEM_ENRICHED_SOLVERS(PLASTIFEM_EXTERN_ENRICHED_SOLVER)
 #undef PLASTIFEM_EXTERN_ENRICHED_SOLVER
+#endif
 #endif
