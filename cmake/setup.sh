@@ -60,7 +60,13 @@ if [ "$what" = sanitize ]; then
   targets=()
   for t in "${sanitize_tests[@]}"; do [ -f "tests/$t.cpp" ] && targets+=("$t"); done
   cmake --build "$build" -j "$jobs" --target "${targets[@]}"
-  regex="^($(IFS='|'; echo "${targets[*]}")): "
+  regex="^($(IFS='|'; echo "${targets[*]}")):"
+  # Every target must register cases: a name pattern that matches nothing would make this stage
+  # pass without running anything (it once ran 3 of its 124 cases).
+  for t in "${targets[@]}"; do
+    count=$(ctest --test-dir "$build" -N -LE long -R "^$t:" | sed -n 's/^Total Tests: //p')
+    [ "${count:-0}" -gt 0 ] || { echo "sanitize: no test cases registered for $t"; exit 1; }
+  done
   # halt_on_error: the first report fails the test; leaks are reported too.
   ASAN_OPTIONS=halt_on_error=1:detect_leaks=1:strict_string_checks=1 \
   UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
