@@ -184,7 +184,7 @@ class Enrichment {
     CutRecord record = id >= 0 ? cuts_[c] : CutRecord{surface, std::vector<Scalar>(n, std::numeric_limits<Scalar>::quiet_NaN()),
                                                       std::vector<Index>(n, -1), std::vector<signed char>(n, 0)};
     record.geometry = surface;
-    const auto elements_of = node_elements(mesh);
+    const auto& elements_of = node_elements(mesh);
     std::vector<Index> enrich;
     std::vector<Index> cut_sorted = cut;
     std::sort(cut_sorted.begin(), cut_sorted.end());
@@ -375,11 +375,14 @@ class Enrichment {
     return 0;
   }
 
-  static std::vector<std::vector<Index>> node_elements(const Mesh<E>& mesh) {
-    std::vector<std::vector<Index>> r(mesh.num_nodes());
-    for (Index e = 0; e < mesh.num_elements(); ++e)
-      for (int a = 0; a < N; ++a) r[mesh.element(e)[a]].push_back(e);
-    return r;
+  /// The elements around each node: built on the first cut, kept (the mesh does not change).
+  const std::vector<std::vector<Index>>& node_elements(const Mesh<E>& mesh) {
+    if (elements_of_.empty()) {
+      elements_of_.resize(mesh.num_nodes());
+      for (Index e = 0; e < mesh.num_elements(); ++e)
+        for (int a = 0; a < N; ++a) elements_of_[mesh.element(e)[a]].push_back(e);
+    }
+    return elements_of_;
   }
 
   Element& element_for(Index e) {
@@ -395,6 +398,7 @@ class Enrichment {
   std::vector<Element> elements_;
   std::vector<Index> element_index_;   ///< elements_[k] is element element_index_[k]
   std::vector<CutRecord> cuts_;
+  std::vector<std::vector<Index>> elements_of_;  ///< node -> elements around it (node_elements)
 };
 
 }  // namespace plastifem

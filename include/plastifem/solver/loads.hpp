@@ -92,7 +92,6 @@ class Loads {
     Index num_dofs = 0;
   };
 
-
   static void compute(Load& l, const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs,
                       const EnrichedBodyForce& enriched) {
     Vector F = Vector::Zero(num_dofs);
