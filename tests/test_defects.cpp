@@ -297,7 +297,7 @@ TEST_CASE("defect 5: statics with load steps: a failing callback or a later incr
 
 // ---- 6 ------------------------------------------------------------------------------------------
 
-TEST_CASE("defect 6: max_step_cuts is at most 30; the final message names the smallest sub-steps",
+TEST_CASE("defect 6: max_step_cuts is at most 30 - the final message names the smallest sub-steps",
           "[defects][cuts]") {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 1, 1);
   for (int cuts : {31, 40, -1}) {

@@ -437,7 +437,7 @@ TEST_CASE("X-FEM: lumped masses (eq. 81-82) and consistent masses add up", "[enr
   }
 }
 
-TEST_CASE("X-FEM: cutting a running simulation keeps u, v and a; failures after a cut roll back", "[enrichment]") {
+TEST_CASE("X-FEM: cutting a running simulation keeps u, v and a - failures after a cut roll back", "[enrichment]") {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 2, 2);
   Solver<Hex8, Corotational, NoPlasticity, ShiftedHeaviside> s(mesh, Material{3000, 0.45, 1.0});
   s.fix(mesh.node_set("xmin"));

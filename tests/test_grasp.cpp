@@ -144,7 +144,7 @@ void grasp_stretch_hold_release(MassKind mass) {
 
 }  // namespace
 
-TEST_CASE("prescribed path derivatives: ramp, hold, sine; given derivatives are used exactly", "[grasp][path]") {
+TEST_CASE("prescribed path derivatives: ramp, hold, sine - given derivatives are used exactly", "[grasp][path]") {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
   const std::vector<Index> end = mesh.node_set("xmax");
   const Scalar A = 0.05, w = 2 * std::numbers::pi;

@@ -116,7 +116,7 @@ TEST_CASE("direct back-ends reject singular and indefinite matrices", "[linear][
   }
 }
 
-TEST_CASE("static solves agree between direct back-ends; a back-end the build lacks is refused",
+TEST_CASE("static solves agree between direct back-ends - a back-end the build lacks is refused",
           "[linear][direct][statics]") {
   const auto mesh = bar_mesh<Hex8>(10, 3, 3);
   Index tip = 0;

@@ -377,7 +377,7 @@ Scalar material_tip(const S& s) {
 
 }  // namespace
 
-TEST_CASE("stretch: residual deformation grows with the load and with the flow rate; volume kept", "[plasticity]") {
+TEST_CASE("stretch: residual deformation grows with the load and with the flow rate - volume kept", "[plasticity]") {
   // bar90 Hex8 Corotational vertex-blended, the paper's first parameter set, 2 s (load and hold).
   Scalar previous = 0;
   for (Scalar force : {250.0, 300.0, 350.0, 400.0}) {
