@@ -8,6 +8,7 @@
 // `--steps` steps after 5 warm-up steps, the cut applied after step 5 of the cut run.
 //
 //   bench_cut [--steps 50] [--csv FILE]
+#include <plastifem/cutting.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include "bench_common.hpp"

@@ -21,6 +21,7 @@
 //                         [--steps 100] [--csv FILE]
 #include "bare_newmark.hpp"
 
+#include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include "bench_common.hpp"

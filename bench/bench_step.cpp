@@ -20,6 +20,7 @@
 //              (corotational: the exact tangent, the default; corotational-warped: R K0 R^T)
 //              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
 //              [--cg-cap N] (real-time rows also with CG capped at N iterations; default 5, 0: none)
+#include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include "bench_common.hpp"

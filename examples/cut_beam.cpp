@@ -19,6 +19,7 @@
 // with their own side's displacement, enrichment/output.hpp).
 #include <plastifem/enrichment/output.hpp>
 #include <plastifem/mesh/io/io.hpp>
+#include <plastifem/cutting.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>

@@ -11,6 +11,7 @@
 // prints the falling part's volume ratio, strain energy and centre-of-mass drop as it goes.
 #include <plastifem/enrichment/output.hpp>
 #include <plastifem/mesh/io/io.hpp>
+#include <plastifem/cutting.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>

@@ -10,6 +10,7 @@
 // Writes DIR/organ_cut.pvd, the organ with the cut opened, and prints each growth's cost.
 #include <plastifem/enrichment/output.hpp>
 #include <plastifem/mesh/io/io.hpp>
+#include <plastifem/cutting.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>

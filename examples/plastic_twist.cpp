@@ -17,6 +17,7 @@
 // (the material mesh), and prints the twist of the end face (world and material) under load and
 // after relaxation, the volume ratios, the cross-section's distortion and the time per step.
 #include <plastifem/mesh/io/io.hpp>
+#include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>

@@ -1,6 +1,7 @@
 // Explicit instantiation definitions of the common Solver types (solver/instantiations.hpp),
 // one source file per group so that the library builds in parallel.
-#include <plastifem/plastifem.hpp>
+#include <plastifem/cutting.hpp>
+#include <plastifem/plasticity.hpp>
 
 #define PLASTIFEM_INSTANTIATE_SOLVER(E, M) template class plastifem::Solver<plastifem::E, plastifem::M>;
 #ifdef PLASTIFEM_COMPILED_ELASTIC_ONLY  // PLASTIFEM_COMPILED_POLICIES=OFF: the elastic types only

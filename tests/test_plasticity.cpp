@@ -22,6 +22,7 @@
 //  - real-time mode and the lumped mass run plasticity too; bad parameters are refused by name.
 #include "catch.hpp"
 
+#include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>

@@ -1,5 +1,5 @@
 #pragma once
-// Discretization<E, Elastic>: the discrete body a solver works on. It owns the mesh, the dof
+// Discretization<E, Elastic, Enriched>: the discrete body a solver works on. It owns the mesh, the dof
 // map, the assembler built for that dof map, and the per-element data of the elastic model
 // (from the current rest shapes); it evaluates the internal force, the tangent and the strain
 // energy at any displacement, element by element, in the assembler's deterministic order.
@@ -10,25 +10,39 @@
 // enrichment/enrichment.hpp); rebuild() then brings the assembler up to date. An enriched
 // element is integrated over its pieces by its point law (enrichment/cut_element.hpp); with no
 // cut the element loop takes one predictable branch per element.
+//
+// `Enriched` says whether the body can be cut (the Heaviside and ShiftedHeaviside policies).
+// Without it every cut path is discarded by `if constexpr`: the X-FEM code is neither compiled
+// nor included (its headers come with <plastifem/cutting.hpp>), and the element loop has no
+// branch at all. Both enriched policies share one Discretization (they differ in the functions,
+// enrichment/enrichment.hpp, not in how the body is assembled).
 #include <plastifem/assembly/element_data.hpp>
 #include <plastifem/assembly/mass.hpp>
-#include <plastifem/enrichment/enrichment.hpp>
+#include <plastifem/enrichment/cut_types.hpp>
 
 #include <limits>
 #include <string>
+#include <type_traits>
 
 namespace plastifem {
 
-template <FiniteElement E, class Elastic>
+template <FiniteElement E>
+class Enrichment;  // enrichment/enrichment.hpp
+template <FiniteElement E>
+struct CutElement;  // enrichment/cut_element.hpp
+
+template <FiniteElement E, class Elastic, bool Enriched = false>
   requires ElasticModel<Elastic, E>
 class Discretization {
+  struct NoCuts {};
+
  public:
   static constexpr int N = E::num_nodes;
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   using Data = typename Elastic::template ElementData<E>;
 
   Discretization(const Mesh<E>& mesh, const Material& material)
-      : mesh_(mesh), dofs_(mesh.num_nodes()), assembler_(mesh_, dofs_), data_(mesh_, material), law_(material) {
+      : mesh_(mesh), dofs_(mesh.num_nodes()), assembler_(mesh_, dofs_), data_(mesh_, material), law_(make_law(material)) {
     if (mesh_.num_elements() == 0)
       fail<MeshError>("the mesh has no elements ({} nodes): nothing to simulate", mesh_.num_nodes());
     element_energy_.assign(mesh_.num_elements(), 0.0);
@@ -44,10 +58,21 @@ class Discretization {
   ElementDataTable<E, Elastic>& data() { return data_; }
   const Material& material() const { return data_.material(); }
   /// The cuts and the enriched elements (empty without a cut).
-  const Enrichment<E>& enrichment() const { return enrichment_; }
+  const Enrichment<E>& enrichment() const
+    requires Enriched
+  {
+    return enrichment_;
+  }
+  /// Whether some element is cut.
+  bool has_cuts() const {
+    if constexpr (Enriched) return !enrichment_.empty();
+    else return false;
+  }
   /// Applies a cut (enrichment/enrichment.hpp); the caller then rebuilds what depends on the dof
   /// map. Throws InvalidArgument, with nothing changed, if the cut is refused.
-  CutReport cut(const Cut& surface, const CutOptions& options, bool shifted, int id, int& applied_id) {
+  CutReport cut(const Cut& surface, const CutOptions& options, bool shifted, int id, int& applied_id)
+    requires Enriched
+  {
     return enrichment_.apply(mesh_, dofs_, surface, options, shifted, id, applied_id);
   }
   Index num_dofs() const { return assembler_.num_dofs(); }
@@ -77,11 +102,12 @@ class Discretization {
     f.setZero();
     Scalar* values = K ? K->values() : nullptr;
     if (K) K->set_zero();
-    const bool cuts = !enrichment_.empty();
+    [[maybe_unused]] const bool cuts = has_cuts();
     assembler_.for_each_element(
         [&](Index e) {
-          if (cuts) {
-            if (const CutElement<E>* c = enrichment_.element(e)) return assemble_enriched(*c, e, u, f, K, kind);
+          if constexpr (Enriched) {
+            if (cuts)
+              if (const auto* c = enrichment_.element(e)) return assemble_enriched(*c, e, u, f, K, kind);
           }
           ElementVector<E> fe;
           ElementMatrix<E> Ke;
@@ -128,19 +154,24 @@ class Discretization {
   Scalar strain_energy(const Vector& u) const {
     Scalar w = 0;
     ElementVector<E> fe;
-    typename CutElement<E>::SpanVector fx;
     for (Index e = 0; e < mesh_.num_elements(); ++e) {
-      if (const CutElement<E>* c = enrichment_.element(e))
-        w += c->template evaluate<Elastic>(law_, current_nodes(e, u), u, fx, nullptr, TangentKind::Projected);
-      else
-        w += Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, nullptr);
+      if constexpr (Enriched) {
+        if (const auto* c = enrichment_.element(e)) {
+          typename CutElement<E>::SpanVector fx;
+          w += c->template evaluate<Elastic>(law_, current_nodes(e, u), u, fx, nullptr, TangentKind::Projected);
+          continue;
+        }
+      }
+      w += Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, nullptr);
     }
     return w;
   }
 
   /// The enriched part of the mass matrix (the standard part is assemble_mass's): added into M
   /// (assembly/mass.hpp's pattern for this dof map).
-  void add_enriched_mass(BlockSymmetricMatrix& M, MassKind kind) const {
+  void add_enriched_mass(BlockSymmetricMatrix& M, MassKind kind) const
+    requires Enriched
+  {
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const Index e = enrichment_.element_of(k);
       const Eigen::Matrix<Scalar, N, 1> lumped =
@@ -151,7 +182,9 @@ class Discretization {
   }
   /// The enriched dofs' share of a body force per unit mass g (enrichment/cut_element.hpp),
   /// added into F.
-  void add_enriched_body_force(const Vec3& g, MassKind kind, Vector& F) const {
+  void add_enriched_body_force(const Vec3& g, MassKind kind, Vector& F) const
+    requires Enriched
+  {
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const CutElement<E>& c = enrichment_.elements()[k];
       const auto f = c.enriched_body_force(material().density, g, kind);
@@ -166,13 +199,15 @@ class Discretization {
     if (!u.allFinite()) return " (the displacement itself is not finite)";
     const auto q = E::template quadrature<E::stiffness_degree>();
     ElementVector<E> fe;
-    typename CutElement<E>::SpanVector fx;
     for (Index e = 0; e < mesh_.num_elements(); ++e) {
       const ElementNodes<E> x = current_nodes(e, u);
-      if (const CutElement<E>* c = enrichment_.element(e)) {
-        const Scalar w = c->template evaluate<Elastic>(law_, x, u, fx, nullptr, TangentKind::Projected);
-        if (std::isfinite(w) && fx.allFinite()) continue;
-        return fmt::format(" (cut element {}: a piece is inverted or its force is not finite)", e);
+      if constexpr (Enriched) {
+        if (const auto* c = enrichment_.element(e)) {
+          typename CutElement<E>::SpanVector fx;
+          const Scalar w = c->template evaluate<Elastic>(law_, x, u, fx, nullptr, TangentKind::Projected);
+          if (std::isfinite(w) && fx.allFinite()) continue;
+          return fmt::format(" (cut element {}: a piece is inverted or its force is not finite)", e);
+        }
       }
       const Scalar w = Elastic::template evaluate<E>(data_[e], x, fe, nullptr);
       if (std::isfinite(w) && fe.allFinite()) continue;
@@ -191,12 +226,15 @@ class Discretization {
     Scalar v = 0;
     for (Index e = 0; e < mesh_.num_elements(); ++e) {
       const ElementNodes<E> x = current_nodes(e, u);
-      if (const CutElement<E>* c = enrichment_.element(e)) {
-        for (int s = 0; s < c->num_sides; ++s) {
-          const ElementNodes<E> y = c->side_nodes(x, u, s);
-          for (int q = 0; q < c->stiffness[s].size(); ++q) v += c->stiffness[s].dv[q] * (y * c->stiffness[s].G[q]).determinant();
+      if constexpr (Enriched) {
+        if (const auto* c = enrichment_.element(e)) {
+          for (int s = 0; s < c->num_sides; ++s) {
+            const ElementNodes<E> y = c->side_nodes(x, u, s);
+            for (int q = 0; q < c->stiffness[s].size(); ++q)
+              v += c->stiffness[s].dv[q] * (y * c->stiffness[s].G[q]).determinant();
+          }
+          continue;
         }
-        continue;
       }
       v += element_volume<E>(x);
     }
@@ -211,11 +249,16 @@ class Discretization {
   }
 
  private:
+  static auto make_law(const Material& m) {
+    if constexpr (Enriched) return typename Elastic::Law(m);
+    else return (void)m, NoCuts{};
+  }
   /// An enriched element's force and tangent over its span (enrichment/cut_element.hpp).
-  void assemble_enriched(const CutElement<E>& c, Index e, const Vector& u, Vector& f, BlockSymmetricMatrix* K,
+  template <class Piecewise = CutElement<E>>
+  void assemble_enriched(const Piecewise& c, Index e, const Vector& u, Vector& f, BlockSymmetricMatrix* K,
                          TangentKind kind) const {
-    typename CutElement<E>::SpanVector fe;
-    typename CutElement<E>::SpanMatrix Ke;
+    typename Piecewise::SpanVector fe;
+    typename Piecewise::SpanMatrix Ke;
     element_energy_[e] = c.template evaluate<Elastic>(law_, current_nodes(e, u), u, fe, K ? &Ke : nullptr, kind);
     const auto& conn = mesh_.element(e);
     for (int a = 0; a < N; ++a) f.template segment<3>(3 * conn[a]) += fe.template segment<3>(3 * a);
@@ -228,8 +271,8 @@ class Discretization {
   DofMap dofs_;
   Assembler<E> assembler_;
   ElementDataTable<E, Elastic> data_;
-  typename Elastic::Law law_;  ///< the point law, for enriched elements
-  Enrichment<E> enrichment_;
+  [[no_unique_address]] std::conditional_t<Enriched, typename Elastic::Law, NoCuts> law_;  ///< for cut elements
+  [[no_unique_address]] std::conditional_t<Enriched, Enrichment<E>, NoCuts> enrichment_;
   Vector X_;  ///< rest positions of the nodes
   Scalar size_ = 1;
   mutable std::vector<Scalar> element_energy_;  ///< W_e of the last assembly (line search, validity)

@@ -32,6 +32,7 @@
 // surface (apply with the cut's id): elements it newly crosses are cut and their new nodes
 // enriched; what was cut stays cut as it was.
 #include <plastifem/assembly/dof_map.hpp>
+#include <plastifem/enrichment/cut_types.hpp>
 #include <plastifem/enrichment/cut_element.hpp>
 #include <plastifem/enrichment/level_set.hpp>
 #include <plastifem/mesh/mesh.hpp>
@@ -43,36 +44,6 @@
 #include <vector>
 
 namespace plastifem {
-
-/// How a cut is applied (defaults documented in enrichment/enrichment.hpp).
-struct CutOptions {
-  /// A node closer to the cut than snap x (the shortest edge of its elements) is moved onto it.
-  Scalar snap = 0.01;
-  /// A node whose support has less than this fraction of its volume on one side is not enriched.
-  Scalar min_fragment = 1e-4;
-
-  void validate() const {
-    if (!(snap >= 0 && snap < 0.5)) fail<InvalidArgument>("cut: snap = {} must be in [0, 0.5)", snap);
-    if (!(min_fragment >= 0 && min_fragment < 0.5))
-      fail<InvalidArgument>("cut: min_fragment = {} must be in [0, 0.5)", min_fragment);
-  }
-};
-
-/// Identifies a cut applied to a solver (to grow it later).
-struct CutHandle {
-  int id = -1;
-};
-
-/// What applying a cut did.
-struct CutReport {
-  int cut_elements = 0;       ///< elements the cut crosses (new ones, for a growing cut)
-  int blending_elements = 0;  ///< uncut elements that couple enriched dofs
-  int enriched_nodes = 0;     ///< nodes that got an enriched dof block (new ones)
-  int snapped_nodes = 0;      ///< nodes moved onto the cut (level set set to 0)
-  int dropped_nodes = 0;      ///< nodes of cut elements left unenriched (sliver support)
-  Index dofs_added = 0;
-  double ms = 0;              ///< time to classify, split and extend the dof map (not the solver's rebuild)
-};
 
 template <FiniteElement E>
 class Enrichment {
@@ -231,103 +202,112 @@ class Enrichment {
         return true;
       });
     }
-    // 4. Commit: nothing below throws for a valid mesh.
-    for (Index i : candidates)
-      if (!std::isnan(phi[i])) record.phi[i] = phi[i], record.H[i] = phi[i] >= 0 ? 1 : -1;
-    const Index dofs_before = dofs.num_dofs();
-    for (Index i : enrich) record.row[i] = dofs.add_slot(i);
-    rep.enriched_nodes = static_cast<int>(enrich.size());
-    if (id >= 0) cuts_[c] = std::move(record);
-    else cuts_.push_back(std::move(record));
-    applied_id = c;
-    const CutRecord& R = cuts_[c];
-    // The cut elements' sides and pieces.
-    for (Index e : cut) {
-      Element& el = element_for(e);
-      el.cut = c;
-      el.num_sides = 2;
-      const ElementNodes<E> X = mesh.element_nodes(e);
-      for (int s = 0; s < 2; ++s) {
-        el.pieces[s] = pieces[e][s];
-        el.stiffness[s] = point_set(X, pieces[e][s], stiffness_points);
-        const ReferencePoints m = mass_points(pieces[e][s]);
-        el.mass_xi[s] = m.xi;
-        el.mass_dv[s].resize(m.xi.size());
-        for (size_t k = 0; k < m.xi.size(); ++k) el.mass_dv[s][k] = m.w[k] * jacobian<E>(X, m.xi[k]).determinant();
-        el.volume[s] = side_volume[e][s];
-      }
-      // An element this cut now splits may already carry another cut's (blending) dofs: their
-      // psi is constant over the element, the same on both sides. (This cut's own older dofs,
-      // from a shorter surface, are given their values per side below.)
-      for (EnrichedDof& d : el.enriched) d.psi[1] = d.psi[0];
-    }
-    rep.cut_elements = static_cast<int>(cut.size());
-    // Enriched dofs of this cut on every element around its new enriched nodes and on every
-    // newly cut element (whose older dofs of this cut, from when it was a blending element of a
-    // shorter cut, now take their value per side).
-    std::vector<char> touched(ne, 0);
-    for (Index i : enrich)
-      for (Index e : elements_of[i]) touched[e] = 1;
-    for (Index e : cut) touched[e] = 1;
-    for (Index e = 0; e < ne; ++e) {
-      if (!touched[e]) continue;
-      const Element* existing = element(e);
-      const bool split = existing && existing->cut == c;
-      const int side = split ? 0 : element_side(mesh, e, level_set_at);
-      const auto& conn = mesh.element(e);
-      std::vector<EnrichedDof> add;
-      std::vector<std::pair<size_t, std::array<Scalar, 2>>> update;
-      for (int a = 0; a < N; ++a) {
-        const Index i = conn[a];
-        if (R.row[i] < 0) continue;
-        EnrichedDof d{a, R.row[i], {0, 0}};
-        for (int s = 0; s < 2; ++s) {
-          const Scalar Hs = (split ? s : side) == 0 ? 1.0 : -1.0;
-          d.psi[s] = shifted ? 0.5 * (Hs - R.H[i]) : Hs;
-        }
-        const auto it = existing ? std::find_if(existing->enriched.begin(), existing->enriched.end(),
-                                                [&](const EnrichedDof& x) { return x.row == d.row; })
-                                 : std::vector<EnrichedDof>::const_iterator{};
-        if (existing && it != existing->enriched.end()) {
-          if (split) update.emplace_back(static_cast<size_t>(it - existing->enriched.begin()), d.psi);
-          continue;
-        }
-        if (d.psi[0] == 0 && d.psi[1] == 0) continue;
-        add.push_back(d);
-      }
-      if (add.empty() && update.empty()) continue;
-      Element& el = element_for(e);
-      for (const auto& [k, psi] : update) el.enriched[k].psi = psi;
-      if (add.empty()) continue;
-      if (!split && el.enriched.empty()) {  // a new blending element: its own Gauss rule
+    // 4. Commit. The one refusal found only while committing (an element that would carry more
+    //    than max_enriched dofs: crossed by too many cuts) restores the snapshot, so that a
+    //    refused cut leaves the body and its dof map as they were.
+    const Snapshot before{cuts_, elements_, element_index_, index_, dofs};
+    try {
+      for (Index i : candidates)
+        if (!std::isnan(phi[i])) record.phi[i] = phi[i], record.H[i] = phi[i] >= 0 ? 1 : -1;
+      const Index dofs_before = dofs.num_dofs();
+      for (Index i : enrich) record.row[i] = dofs.add_slot(i);
+      rep.enriched_nodes = static_cast<int>(enrich.size());
+      if (id >= 0) cuts_[c] = std::move(record);
+      else cuts_.push_back(std::move(record));
+      const CutRecord& R = cuts_[c];
+      // The cut elements' sides and pieces.
+      for (Index e : cut) {
+        Element& el = element_for(e);
+        el.cut = c;
+        el.num_sides = 2;
         const ElementNodes<E> X = mesh.element_nodes(e);
-        el.num_sides = 1;
-        el.stiffness[0] = gauss_point_set<E>(X);
-        const auto q = E::template quadrature<E::mass_degree>();
-        el.mass_xi[0].clear(), el.mass_dv[0].clear();
-        for (int k = 0; k < q.size; ++k) {
-          el.mass_xi[0].push_back(q.points[k]);
-          el.mass_dv[0].push_back(q.weights[k] * jacobian<E>(X, q.points[k]).determinant());
+        for (int s = 0; s < 2; ++s) {
+          el.pieces[s] = pieces[e][s];
+          el.stiffness[s] = point_set(X, pieces[e][s], stiffness_points);
+          const ReferencePoints m = mass_points(pieces[e][s]);
+          el.mass_xi[s] = m.xi;
+          el.mass_dv[s].resize(m.xi.size());
+          for (size_t k = 0; k < m.xi.size(); ++k) el.mass_dv[s][k] = m.w[k] * jacobian<E>(X, m.xi[k]).determinant();
+          el.volume[s] = side_volume[e][s];
         }
-        el.volume = {element_volume<E>(X), 0};
-        ++rep.blending_elements;
+        // An element this cut now splits may already carry another cut's (blending) dofs: their
+        // psi is constant over the element, the same on both sides. (This cut's own older dofs,
+        // from a shorter surface, are given their values per side below.)
+        for (EnrichedDof& d : el.enriched) d.psi[1] = d.psi[0];
       }
-      if (el.num_sides == 1)
-        for (EnrichedDof& d : add) d.psi[1] = d.psi[0];
-      if (static_cast<int>(el.enriched.size() + add.size()) > Element::max_enriched)
-        fail<InvalidArgument>("cut: element {} would carry {} enriched dofs (at most {})", e,
-                              el.enriched.size() + add.size(), Element::max_enriched);
-      el.enriched.insert(el.enriched.end(), add.begin(), add.end());
+      rep.cut_elements = static_cast<int>(cut.size());
+      // Enriched dofs of this cut on every element around its new enriched nodes and on every
+      // newly cut element (whose older dofs of this cut, from when it was a blending element of a
+      // shorter cut, now take their value per side).
+      std::vector<char> touched(ne, 0);
+      for (Index i : enrich)
+        for (Index e : elements_of[i]) touched[e] = 1;
+      for (Index e : cut) touched[e] = 1;
+      for (Index e = 0; e < ne; ++e) {
+        if (!touched[e]) continue;
+        const Element* existing = element(e);
+        const bool split = existing && existing->cut == c;
+        const int side = split ? 0 : element_side(mesh, e, level_set_at);
+        const auto& conn = mesh.element(e);
+        std::vector<EnrichedDof> add;
+        std::vector<std::pair<size_t, std::array<Scalar, 2>>> update;
+        for (int a = 0; a < N; ++a) {
+          const Index i = conn[a];
+          if (R.row[i] < 0) continue;
+          EnrichedDof d{a, R.row[i], {0, 0}};
+          for (int s = 0; s < 2; ++s) {
+            const Scalar Hs = (split ? s : side) == 0 ? 1.0 : -1.0;
+            d.psi[s] = shifted ? 0.5 * (Hs - R.H[i]) : Hs;
+          }
+          const auto it = existing ? std::find_if(existing->enriched.begin(), existing->enriched.end(),
+                                                  [&](const EnrichedDof& x) { return x.row == d.row; })
+                                   : std::vector<EnrichedDof>::const_iterator{};
+          if (existing && it != existing->enriched.end()) {
+            if (split) update.emplace_back(static_cast<size_t>(it - existing->enriched.begin()), d.psi);
+            continue;
+          }
+          if (d.psi[0] == 0 && d.psi[1] == 0) continue;
+          add.push_back(d);
+        }
+        if (add.empty() && update.empty()) continue;
+        Element& el = element_for(e);
+        for (const auto& [k, psi] : update) el.enriched[k].psi = psi;
+        if (add.empty()) continue;
+        if (!split && el.enriched.empty()) {  // a new blending element: its own Gauss rule
+          const ElementNodes<E> X = mesh.element_nodes(e);
+          el.num_sides = 1;
+          el.stiffness[0] = gauss_point_set<E>(X);
+          const auto q = E::template quadrature<E::mass_degree>();
+          el.mass_xi[0].clear(), el.mass_dv[0].clear();
+          for (int k = 0; k < q.size; ++k) {
+            el.mass_xi[0].push_back(q.points[k]);
+            el.mass_dv[0].push_back(q.weights[k] * jacobian<E>(X, q.points[k]).determinant());
+          }
+          el.volume = {element_volume<E>(X), 0};
+          ++rep.blending_elements;
+        }
+        if (el.num_sides == 1)
+          for (EnrichedDof& d : add) d.psi[1] = d.psi[0];
+        if (static_cast<int>(el.enriched.size() + add.size()) > Element::max_enriched)
+          fail<InvalidArgument>("cut: element {} would carry {} enriched dofs (at most {})", e,
+                                el.enriched.size() + add.size(), Element::max_enriched);
+        el.enriched.insert(el.enriched.end(), add.begin(), add.end());
+      }
+      // The elements' spans in the dof map, in their enriched dofs' order.
+      for (size_t k = 0; k < elements_.size(); ++k) {
+        std::vector<Index> rows;
+        for (const EnrichedDof& d : elements_[k].enriched) rows.push_back(d.row);
+        if (!rows.empty() && std::vector<Index>(dofs.extension(element_index_[k]).begin(),
+                                                dofs.extension(element_index_[k]).end()) != rows)
+          dofs.extend_element(element_index_[k], rows);
+      }
+      rep.dofs_added = dofs.num_dofs() - dofs_before;
+    } catch (...) {
+      cuts_ = before.cuts, elements_ = before.elements, element_index_ = before.element_index, index_ = before.index;
+      dofs = before.dofs;
+      throw;
     }
-    // The elements' spans in the dof map, in their enriched dofs' order.
-    for (size_t k = 0; k < elements_.size(); ++k) {
-      std::vector<Index> rows;
-      for (const EnrichedDof& d : elements_[k].enriched) rows.push_back(d.row);
-      if (!rows.empty() && std::vector<Index>(dofs.extension(element_index_[k]).begin(),
-                                              dofs.extension(element_index_[k]).end()) != rows)
-        dofs.extend_element(element_index_[k], rows);
-    }
-    rep.dofs_added = dofs.num_dofs() - dofs_before;
+    applied_id = c;
     rep.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return rep;
   }
@@ -351,6 +331,14 @@ class Enrichment {
     std::vector<Scalar> phi;         ///< per node (NaN: not needed)
     std::vector<Index> row;          ///< per node: its enriched block row, -1 if none
     std::vector<signed char> H;      ///< per node: the Heaviside sign (0: not computed)
+  };
+  /// What a cut changes, kept while it commits (apply).
+  struct Snapshot {
+    std::vector<CutRecord> cuts;
+    std::vector<Element> elements;
+    std::vector<Index> element_index;
+    std::vector<int> index;
+    DofMap dofs;
   };
 
   /// The quadrature degrees of linear elasticity's integrands (enrichment/subdivision.hpp).

@@ -22,6 +22,7 @@
 // surface with at least one triangle of non-zero area and no index out of range.
 #include <plastifem/core/error.hpp>
 #include <plastifem/core/types.hpp>
+#include <plastifem/enrichment/cut_types.hpp>
 
 #include <algorithm>
 #include <array>
@@ -248,9 +249,6 @@ class CutSurface {
   std::map<std::pair<Index, Index>, Vec3> edge_normal_;
   Box bounds_;
 };
-
-/// Any of the three cut geometries.
-using Cut = std::variant<CutPlane, CutPatch, CutSurface>;
 
 inline Scalar signed_distance(const Cut& c, const Vec3& x) {
   return std::visit([&](const auto& s) { return s.signed_distance(x); }, c);

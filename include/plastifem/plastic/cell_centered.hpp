@@ -5,6 +5,7 @@
 // shows in how the elements are turned against each other once fused into the material mesh,
 // which distorts the cross-section more than VertexBlended (the paper's Fig. 6).
 #include <plastifem/plastic/params.hpp>
+#include <plastifem/plastic/plasticity.hpp>
 
 namespace plastifem {
 
@@ -13,6 +14,10 @@ struct CellCentered {
   static constexpr bool active = true;
   static constexpr bool per_vertex_rotation = false;
   using Params = PlasticParams;
+  /// What the Solver keeps in its State, and the update it runs (plastic/plasticity.hpp).
+  using State = PlasticTable;
+  template <FiniteElement E, class Elastic>
+  using Engine = plastic::Plasticity<E, Elastic, per_vertex_rotation>;
 };
 
 }  // namespace plastifem

@@ -7,10 +7,11 @@
 //
 // The policies are small types; what they do is in plastic/flow.hpp (one element's flow, the
 // formulas), plastic/fusion.hpp (the material mesh) and plastic/plasticity.hpp (a body's
-// update and its link to the element data).
-#include <plastifem/plastic/cell_centered.hpp>
+// update and its link to the element data). This header is light: the Solver includes it.
+// The active policies, with the code behind them, come with <plastifem/plasticity.hpp>, so an
+// elastic file does not compile them.
 #include <plastifem/plastic/none.hpp>
-#include <plastifem/plastic/vertex_blended.hpp>
+#include <plastifem/plastic/params.hpp>
 
 #include <concepts>
 
@@ -26,8 +27,10 @@ concept PlasticModel = requires {
 } && (!P::active || requires {
   { P::per_vertex_rotation } -> std::convertible_to<bool>;
   requires std::same_as<typename P::Params, PlasticParams>;
+  typename P::State;  // its part of the Solver's State
+  // and `template <FiniteElement E, class Elastic> using Engine`: its update (plastic/plasticity.hpp)
 });
 
-static_assert(PlasticModel<NoPlasticity> && PlasticModel<VertexBlended> && PlasticModel<CellCentered>);
+static_assert(PlasticModel<NoPlasticity>);  // the others: <plastifem/plasticity.hpp>
 
 }  // namespace plastifem

@@ -5,6 +5,7 @@
 // better than CellCentered, and distorts each element more. The formulas are in
 // plastic/flow.hpp, the update in plastic/plasticity.hpp.
 #include <plastifem/plastic/params.hpp>
+#include <plastifem/plastic/plasticity.hpp>
 
 namespace plastifem {
 
@@ -13,6 +14,10 @@ struct VertexBlended {
   static constexpr bool active = true;
   static constexpr bool per_vertex_rotation = true;
   using Params = PlasticParams;
+  /// What the Solver keeps in its State, and the update it runs (plastic/plasticity.hpp).
+  using State = PlasticTable;
+  template <FiniteElement E, class Elastic>
+  using Engine = plastic::Plasticity<E, Elastic, per_vertex_rotation>;
 };
 
 }  // namespace plastifem

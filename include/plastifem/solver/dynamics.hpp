@@ -31,20 +31,20 @@
 namespace plastifem {
 
 /// What a step works with: the parts of a Solver, by reference.
-template <FiniteElement E, class Elastic>
+template <FiniteElement E, class Elastic, bool Enriched = false>
 struct SolverParts {
-  Discretization<E, Elastic>& body;
-  System<E, Elastic>& system;
+  Discretization<E, Elastic, Enriched>& body;
+  System<E, Elastic, Enriched>& system;
   const Constraints& constraints;
   const Loads<E>& loads;
   const SolverSettings& settings;
   int threads;
 };
 
-template <FiniteElement E, class Elastic>
+template <FiniteElement E, class Elastic, bool Enriched = false>
 class Dynamics {
  public:
-  using Parts = SolverParts<E, Elastic>;
+  using Parts = SolverParts<E, Elastic, Enriched>;
   using StateT = MotionState;  // the plastic part is the solver's (plastic/)
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   static constexpr bool constant_tangent = Elastic::constant_tangent;

@@ -13,11 +13,14 @@
 // A step or static solve that fails leaves the state bit for bit as it was, whatever failed
 // (Newton, CG, a NaN, an inverted element, an exception thrown by a load curve or a prescribed
 // path): every change is made to a working copy, committed by a swap at the very end.
+//
+// The plastic and enrichment axes are compiled only where they are used: with NoPlasticity
+// and NoEnrichment their code paths are discarded (if constexpr) and their headers are not
+// included; the active policies come with <plastifem/plasticity.hpp> and <plastifem/cutting.hpp>.
 #include <plastifem/core/log.hpp>
 #include <plastifem/enrichment/enrichment_policy.hpp>
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/plastic/plastic.hpp>
-#include <plastifem/plastic/plasticity.hpp>
 #include <plastifem/solver/statics.hpp>
 #include <plastifem/solver/step_control.hpp>
 
@@ -47,8 +50,8 @@ class Solver {
   };
   template <class P>
   struct PlasticParts<P, true> {
-    using State = PlasticTable;
-    using Engine = plastic::Plasticity<E, Elastic, P::per_vertex_rotation>;
+    using State = typename P::State;
+    using Engine = typename P::template Engine<E, Elastic>;
   };
 
  public:
@@ -123,7 +126,11 @@ class Solver {
   /// What the last cut or growth did.
   const CutReport& last_cut_report() const { return cut_report_; }
   /// The cuts and the enriched elements (for output: io::write_cut_vtu, enrichment/output.hpp).
-  const Enrichment<E>& enrichment() const { return body_.enrichment(); }
+  const Enrichment<E>& enrichment() const
+    requires Enrich::active
+  {
+    return body_.enrichment();
+  }
   /// Every node's physical displacement, one node per column: u_i, and for Heaviside
   /// enrichment u_i + sum_cuts H_i a_i (its standard dofs alone are not the node's
   /// displacement; with shifted enrichment they are).
@@ -199,7 +206,7 @@ class Solver {
   Index num_element_shapes() const { return body_.data().num_shapes(); }
 
  private:
-  using Parts = SolverParts<E, Elastic>;
+  using Parts = SolverParts<E, Elastic, enriched>;
   Parts parts() { return Parts{body_, system_, constraints_, loads_, settings_, threads()}; }
 
   /// Everything derived from the dof map, rebuilt after it changed.
@@ -226,20 +233,23 @@ class Solver {
 
   /// X-FEM: the enriched dofs' share of a body force (empty without a cut).
   typename Loads<E>::EnrichedBodyForce enriched_body_force() const {
-    if (body_.enrichment().empty()) return {};
-    return [this](const Vec3& g, MassKind kind, Vector& F) { body_.add_enriched_body_force(g, kind, F); };
+    if constexpr (enriched) {
+      if (body_.has_cuts())
+        return [this](const Vec3& g, MassKind kind, Vector& F) { body_.add_enriched_body_force(g, kind, F); };
+    }
+    return {};
   }
   /// Heaviside enrichment: the enriched dofs of constrained nodes, held at zero with them.
   std::vector<Index> held_enriched_dofs() const;
   CutReport cut_report_;
 
   SolverSettings settings_;
-  Discretization<E, Elastic> body_;
-  System<E, Elastic> system_;
+  Discretization<E, Elastic, enriched> body_;
+  System<E, Elastic, enriched> system_;
   Constraints constraints_;
   Loads<E> loads_;
-  Dynamics<E, Elastic> dynamics_;
-  Statics<E, Elastic> statics_;
+  Dynamics<E, Elastic, enriched> dynamics_;
+  Statics<E, Elastic, enriched> statics_;
   StateType current_, work_, trial_;
   PlasticParamsType plastic_params_;
   [[no_unique_address]] typename PlasticParts<Plastic>::Engine plastic_;

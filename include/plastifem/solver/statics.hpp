@@ -11,10 +11,10 @@
 
 namespace plastifem {
 
-template <FiniteElement E, class Elastic>
+template <FiniteElement E, class Elastic, bool Enriched = false>
 class Statics {
  public:
-  using Parts = SolverParts<E, Elastic>;
+  using Parts = SolverParts<E, Elastic, Enriched>;
   using StateT = MotionState;  // the plastic part is the solver's (plastic/)
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   static constexpr bool constant_tangent = Elastic::constant_tangent;

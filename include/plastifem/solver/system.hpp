@@ -17,10 +17,10 @@
 
 namespace plastifem {
 
-template <FiniteElement E, class Elastic>
+template <FiniteElement E, class Elastic, bool Enriched = false>
 class System {
  public:
-  using Body = Discretization<E, Elastic>;
+  using Body = Discretization<E, Elastic, Enriched>;
 
   System(const SolverSettings& s) : linear_(s.linear), static_linear_(s.static_linear) {}
 
@@ -168,7 +168,8 @@ class System {
  private:
   void build_mass(const Body& body, MassKind kind) {
     assemble_mass(body.mesh(), body.assembler(), body.material().density, kind, M);
-    if (!body.enrichment().empty()) body.add_enriched_mass(M, kind);
+    if constexpr (Enriched)
+      if (body.has_cuts()) body.add_enriched_mass(M, kind);
   }
 
   LinearSolver linear_, static_linear_;
