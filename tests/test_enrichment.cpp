@@ -18,6 +18,8 @@
 #include <plastifem/plastifem.hpp>
 
 #include <cmath>
+#include <limits>
+#include <numbers>
 #include <random>
 #include <type_traits>
 
@@ -188,6 +190,96 @@ TEST_CASE("level sets: plane, patch and closed surface, with the right sign ever
   CHECK_THROWS_AS(CutPatch(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(2, 0, 0)), InvalidArgument);
   CHECK_THROWS_AS(CutSurface({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(2, 0, 0)}, {{0, 1, 2}}), InvalidArgument);
   CHECK_THROWS_AS(CutSurface({Vec3(0, 0, 0), Vec3(1, 0, 0)}, {{0, 1, 2}}), InvalidArgument);
+}
+
+TEST_CASE("level sets: a triangulated surface's tree answers as a scan of every triangle", "[enrichment]") {
+  // A UV sphere (2,208 triangles, closed, outward) and an open wavy sheet z = 0.2 sin(3x) cos(2y)
+  // (2,592 triangles, normals +z). For random points and boxes: |signed distance| equals the
+  // minimum over all triangles exactly (the tree prunes only boxes strictly farther than the
+  // best), the sign is the side away from the surface (points 0.05 or more from the smooth
+  // surface: the tessellation is within 0.01 of it), and meets(box) equals testing every triangle.
+  const auto scan_distance = [](const std::vector<Vec3>& v, const std::vector<std::array<Index, 3>>& t, const Vec3& x) {
+    Scalar best = std::numeric_limits<Scalar>::max();
+    for (const auto& f : t) {
+      int feature = 0;
+      best = std::min(best, (x - detail::closest_on_triangle(x, v[f[0]], v[f[1]], v[f[2]], feature)).squaredNorm());
+    }
+    return std::sqrt(best);
+  };
+  const auto scan_meets = [](const std::vector<Vec3>& v, const std::vector<std::array<Index, 3>>& t, const Box& b) {
+    for (const auto& f : t)
+      if (detail::triangle_meets_box(v[f[0]], v[f[1]], v[f[2]], b)) return true;
+    return false;
+  };
+  std::vector<Vec3> sv;
+  std::vector<std::array<Index, 3>> st;
+  const int nu = 48, nv = 24;  // longitude x latitude
+  sv.emplace_back(0, 0, 1);
+  for (int j = 1; j < nv; ++j)
+    for (int i = 0; i < nu; ++i) {
+      const Scalar th = std::numbers::pi * j / nv, ph = 2 * std::numbers::pi * i / nu;
+      sv.emplace_back(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+    }
+  sv.emplace_back(0, 0, -1);
+  const Index south = static_cast<Index>(sv.size()) - 1;
+  auto ring = [&](int j, int i) { return static_cast<Index>(1 + (j - 1) * nu + (i % nu)); };
+  for (int i = 0; i < nu; ++i) {
+    st.push_back({0, ring(1, i), ring(1, i + 1)});
+    st.push_back({south, ring(nv - 1, i + 1), ring(nv - 1, i)});
+    for (int j = 1; j < nv - 1; ++j) {
+      st.push_back({ring(j, i), ring(j + 1, i), ring(j + 1, i + 1)});
+      st.push_back({ring(j, i), ring(j + 1, i + 1), ring(j, i + 1)});
+    }
+  }
+  const CutSurface sphere(sv, st);
+  std::vector<Vec3> wv;
+  std::vector<std::array<Index, 3>> wt;
+  const int n = 36;
+  auto height = [](Scalar x, Scalar y) { return 0.2 * std::sin(3 * x) * std::cos(2 * y); };
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const Scalar x = -1.5 + 3.0 * i / n, y = -1.5 + 3.0 * j / n;
+      wv.emplace_back(x, y, height(x, y));
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const Index a = j * (n + 1) + i, b = a + 1, c = a + n + 1, d = c + 1;
+      wt.push_back({a, b, d});
+      wt.push_back({a, d, c});
+    }
+  const CutSurface sheet(wv, wt);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<Scalar> coord(-1.6, 1.6), size(0.0, 0.4);
+  int sphere_signs = 0, sheet_signs = 0, meets_true = 0;
+  for (int k = 0; k < 3000; ++k) {
+    const Vec3 x(coord(rng), coord(rng), coord(rng));
+    const Scalar ds = sphere.signed_distance(x), dw = sheet.signed_distance(x);
+    REQUIRE(std::abs(ds) == scan_distance(sv, st, x));
+    REQUIRE(std::abs(dw) == scan_distance(wv, wt, x));
+    if (std::abs(x.norm() - 1) > 0.05) {
+      CHECK((ds > 0) == (x.norm() > 1));
+      ++sphere_signs;
+    }
+    if (std::abs(x.x()) < 1.4 && std::abs(x.y()) < 1.4 && std::abs(x.z() - height(x.x(), x.y())) > 0.05) {
+      CHECK((dw > 0) == (x.z() > height(x.x(), x.y())));
+      ++sheet_signs;
+    }
+    const Vec3 h(size(rng), size(rng), size(rng));
+    const Box box{x - h, x + h};
+    const bool m = sphere.meets(box);
+    REQUIRE(m == scan_meets(sv, st, box));
+    REQUIRE(sheet.meets(box) == scan_meets(wv, wt, box));
+    meets_true += m;
+  }
+  INFO("signs checked: sphere " << sphere_signs << ", sheet " << sheet_signs << "; boxes meeting the sphere "
+                                << meets_true);
+  CHECK(sphere_signs > 2000);
+  CHECK(sheet_signs > 1000);
+  CHECK(meets_true > 100);
+  CHECK(meets_true < 2900);
+  // A default-constructed surface meets nothing and is far from everything.
+  CHECK_FALSE(CutSurface().meets(Box{Vec3(-1, -1, -1), Vec3(1, 1, 1)}));
+  CHECK(CutSurface().signed_distance(Vec3(0, 0, 0)) > 1e100);
 }
 
 // --- X-FEM cutting, part 2: the solver ---------------------------------------------------------
