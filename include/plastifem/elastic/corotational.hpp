@@ -201,18 +201,36 @@ struct Corotational {
   };
 
   /// The element integral over any point set (one rotation per point), equal to evaluate()
-  /// over the Gauss rule.
+  /// over the Gauss rule: the set is taken in chunks of the Gauss rule's size (the last padded
+  /// with points of zero weight), each through the batched kernel below, whose per-point cost
+  /// is a quarter of the point law's (a cut Hex8 side has up to 23 points: 3 chunks of 8).
   template <FiniteElement E>
   static Scalar evaluate_points(const Law& law, const PointSet<E>& ps, const ElementNodes<E>& x, ElementVector<E>& f,
                                 ElementMatrix<E>* K, TangentKind kind = TangentKind::Projected) {
+    constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     f.setZero();
     if (K) K->setZero();
+    ElementData<E> d;
+    d.mu = law.mu, d.lambda = law.lambda;
+    ElementVector<E> fc;
+    ElementMatrix<E> Kc;
     Scalar W = 0;
-    Mat3 P;
-    Matrix9 A;
-    for (int q = 0; q < ps.size(); ++q) {
-      W += ps.dv[q] * law.evaluate(x * ps.G[q], P, K ? &A : nullptr, kind);
-      detail::add_point_contribution<E>(ps.G[q], ps.dv[q], P, K ? &A : nullptr, f, K);
+    for (int q0 = 0; q0 < ps.size(); q0 += Q) {
+      QuadraturePoints<E>& c = d.points;
+      for (int k = 0; k < Q; ++k) {
+        const int q = std::min(q0 + k, ps.size() - 1);  // a padding point repeats the last one
+        c.G[k] = ps.G[q];
+        c.dv[k] = c.dv_points(k) = q0 + k < ps.size() ? ps.dv[q] : 0.0;
+        for (int a = 0; a < N; ++a)
+          for (int j = 0; j < 3; ++j) c.GT(k, 3 * a + j) = c.G[k](a, j);
+      }
+      if (K) {
+        c.L.setZero();
+        for (int k = 0; k < Q; ++k) c.L.noalias() += c.dv[k] * c.G[k] * c.G[k].transpose();
+      }
+      W += evaluate<E>(d, x, fc, K ? &Kc : nullptr, kind);
+      f += fc;
+      if (K) *K += Kc;
     }
     return W;
   }
