@@ -22,6 +22,13 @@ struct CutOptions {
   Scalar snap = 0.01;
   /// A node whose support has less than this fraction of its volume on one side is not enriched.
   Scalar min_fragment = 1e-4;
+  /// A cut element's stiffness rule on each side: the sub-tetrahedra's rules (degree 4 for Hex8,
+  /// 2 for Tet10) compressed to at most as many points as the integrand of linear elasticity has
+  /// polynomials (Hex8 23, Tet10 10; Tet4 keeps one point per piece), with the same integrals of
+  /// them: the same stiffness on an affine element, a tenth of the points for Hex8
+  /// (enrichment/subdivision.hpp). false keeps every sub-tetrahedron's points (the thesis'
+  /// sub-element integration: up to ~250 per side of a Hex8).
+  bool compress_quadrature = true;
 
   void validate() const {
     if (!(snap >= 0 && snap < 0.5)) fail<InvalidArgument>("cut: snap = {} must be in [0, 0.5)", snap);
@@ -43,6 +50,7 @@ struct CutReport {
   int snapped_nodes = 0;      ///< nodes moved onto the cut (level set set to 0)
   int dropped_nodes = 0;      ///< nodes of cut elements left unenriched (sliver support)
   Index dofs_added = 0;
+  int stiffness_points = 0;   ///< integration points of the new cut elements' sides (stiffness rule)
   double ms = 0;              ///< time to classify, split and extend the dof map (not the solver's rebuild)
 };
 

@@ -223,7 +223,8 @@ class Enrichment {
         const ElementNodes<E> X = mesh.element_nodes(e);
         for (int s = 0; s < 2; ++s) {
           el.pieces[s] = pieces[e][s];
-          el.stiffness[s] = point_set(X, pieces[e][s], stiffness_points);
+          el.stiffness[s] = point_set(X, stiffness_points(pieces[e][s], opt.compress_quadrature));
+          rep.stiffness_points += el.stiffness[s].size();
           const ReferencePoints m = mass_points(pieces[e][s]);
           el.mass_xi[s] = m.xi;
           el.mass_dv[s].resize(m.xi.size());
@@ -344,12 +345,19 @@ class Enrichment {
   /// The quadrature degrees of linear elasticity's integrands (enrichment/subdivision.hpp).
   static constexpr int stiffness_degree = E::num_nodes == 4 ? 1 : (E::num_nodes == 10 ? 2 : 4);
   static constexpr int mass_degree = E::num_nodes == 4 ? 2 : (E::num_nodes == 10 ? 4 : 5);
-  static ReferencePoints stiffness_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<stiffness_degree>(p); }
   static ReferencePoints mass_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<mass_degree>(p); }
+  /// A side's stiffness rule: the pieces' rules, compressed (CutOptions::compress_quadrature) to
+  /// at most as many points as the integrand of linear elasticity has polynomials, with the same
+  /// integrals of them (subdivision.hpp, compress_rule; kept whole if compression fails).
+  static ReferencePoints stiffness_points(const std::vector<ReferenceTet>& p, bool compress) {
+    ReferencePoints r = piece_quadrature<stiffness_degree>(p);
+    static const std::vector<std::array<int, 3>> exponents = stiffness_exponents<E>();
+    if (!compress || r.xi.size() <= exponents.size()) return r;
+    ReferencePoints c = compress_rule(r, r, exponents);
+    return c.xi.empty() ? r : c;
+  }
 
-  template <class Rule>
-  static PointSet<E> point_set(const ElementNodes<E>& X, const std::vector<ReferenceTet>& pieces, Rule rule) {
-    const ReferencePoints r = rule(pieces);
+  static PointSet<E> point_set(const ElementNodes<E>& X, const ReferencePoints& r) {
     PointSet<E> ps;
     for (size_t k = 0; k < r.xi.size(); ++k) ps.add(X, r.xi[k], r.w[k]);
     return ps;

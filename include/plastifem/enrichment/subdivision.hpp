@@ -28,7 +28,11 @@
 // coordinates exactly. The solver asks for the degrees of linear elasticity's integrands
 // (enrichment/cut_element.hpp): Tet4 stiffness 0 and mass 2, Tet10 2 and 4, Hex8 4 and 5 (the
 // Hex8 mass integrand has degree 6 on a parallelepiped; the rules are tabulated to degree 5: a
-// relative error of ~1e-4 in the masses of the cut element's enriched dofs).
+// relative error of ~1e-4 in the masses of the cut element's enriched dofs). The stiffness rule
+// of each side is then compressed (compress_rule below; CutOptions::compress_quadrature) to at
+// most as many points as the integrand's polynomial space has members, with the same integrals
+// of them: the same stiffness on an affine element, a tenth of the points on a cut Hex8.
+#include <plastifem/core/nonnegative_least_squares.hpp>
 #include <plastifem/element/element.hpp>
 
 #include <array>
@@ -128,6 +132,58 @@ ReferencePoints piece_quadrature(const std::vector<ReferenceTet>& pieces) {
     }
   }
   return r;
+}
+
+/// Exponents (a, b, c) of the polynomials x^a y^b z^c (reference coordinates) that linear
+/// elasticity's stiffness integrand B^T D B det J spans on an affine element: Tet4 total degree
+/// <= 1 (the integrand is constant; one point per piece is kept), Tet10 total degree <= 2, Hex8
+/// a, b, c <= 2 with a + b + c <= 4 (dN/dxi is bilinear in the other two coordinates, so a
+/// product of two has degree <= 2 in each and <= 4 in all): 4, 10 and 23 polynomials.
+template <FiniteElement E>
+std::vector<std::array<int, 3>> stiffness_exponents() {
+  constexpr int total = E::num_nodes == 4 ? 1 : (E::num_nodes == 10 ? 2 : 4);
+  constexpr int each = E::num_nodes == 8 ? 2 : total;
+  std::vector<std::array<int, 3>> e;
+  for (int a = 0; a <= each; ++a)
+    for (int b = 0; b <= each; ++b)
+      for (int c = 0; c <= each; ++c)
+        if (a + b + c <= total) e.push_back({a, b, c});
+  return e;
+}
+
+/// A rule with the same integrals as `exact` of the polynomials `exponents`, with at most as
+/// many points as there are polynomials, all of them points of `candidates`, with non-negative
+/// weights (Tchakaloff's theorem says such a rule exists among the points of any positive rule
+/// exact for the space; Sommariva and Vianello, "Compression of multivariate discrete measures
+/// and applications", 2015, find it by non-negative least squares on the moment equations
+/// V w = m, V the polynomials at the candidates, m the moments). The polynomials are Legendre
+/// products on the candidates' bounding box: they span the same space as the monomials (it is
+/// invariant under scaling and shifting each coordinate) and keep V well conditioned on a small
+/// side. Returns an empty rule if the candidates cannot carry the moments to 1e-13 of the side's
+/// volume.
+inline ReferencePoints compress_rule(const ReferencePoints& exact, const ReferencePoints& candidates,
+                                     const std::vector<std::array<int, 3>>& exponents) {
+  const Index m = static_cast<Index>(exponents.size()), n = static_cast<Index>(candidates.xi.size());
+  Vec3 lo = candidates.xi[0], hi = candidates.xi[0];
+  for (const Vec3& p : exact.xi) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const Vec3 centre = (lo + hi) / 2, half = ((hi - lo) / 2).cwiseMax(1e-300);
+  auto basis = [&](const Vec3& x, auto&& column) {
+    const Vec3 t = (x - centre).cwiseQuotient(half);
+    Scalar L[3][3];  // Legendre P0, P1, P2 of each coordinate
+    for (int d = 0; d < 3; ++d) L[d][0] = 1, L[d][1] = t[d], L[d][2] = (3 * t[d] * t[d] - 1) / 2;
+    for (Index i = 0; i < m; ++i) column[i] = L[0][exponents[i][0]] * L[1][exponents[i][1]] * L[2][exponents[i][2]];
+  };
+  Eigen::VectorXd moments = Eigen::VectorXd::Zero(m), v(m);
+  for (size_t k = 0; k < exact.xi.size(); ++k) basis(exact.xi[k], v), moments += exact.w[k] * v;
+  Eigen::MatrixXd V(m, n);
+  for (Index k = 0; k < n; ++k) basis(candidates.xi[k], V.col(k));
+  const Scalar volume = moments[0];  // exponents[0] is (0, 0, 0)
+  const Eigen::VectorXd w = nonnegative_least_squares(V, moments, 1e-15 * volume);
+  ReferencePoints c;
+  if ((V * w - moments).lpNorm<Eigen::Infinity>() > 1e-13 * volume) return c;
+  for (Index k = 0; k < n; ++k)
+    if (w[k] > 0) c.xi.push_back(candidates.xi[k]), c.w.push_back(w[k]);
+  return c;
 }
 
 /// The two sides of an element cut by a level set with nodal values phi: its reference pieces
