@@ -83,12 +83,15 @@ class PassiveQR {
 inline Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& A, const Eigen::VectorXd& b,
                                                  Scalar tolerance) {
   const Index n = A.cols();
+  // The gradient A^T r is the loop's main cost: as a product with A^T stored column-major it is
+  // m axpys of length n (SIMD along the candidates) instead of n short dot products.
+  const Eigen::MatrixXd At = A.transpose();
   Eigen::VectorXd x = Eigen::VectorXd::Zero(n), w(n), r = b, z;
   std::vector<char> passive(n, 0), blocked(n, 0);  // blocked: its addition was just undone
   std::vector<Index> P;                            // the passive set, in the QR's column order
   detail::PassiveQR qr(A.rows(), b);
   for (Index additions = 0; additions < 3 * n; ++additions) {
-    w.noalias() = A.transpose() * r;
+    w.noalias() = At * r;
     Index j = -1;
     Scalar best = tolerance;
     for (Index k = 0; k < n; ++k)

@@ -165,7 +165,7 @@ inline ReferencePoints compress_rule(const ReferencePoints& exact, const Referen
                                      const std::vector<std::array<int, 3>>& exponents) {
   const Index m = static_cast<Index>(exponents.size()), n = static_cast<Index>(candidates.xi.size());
   Vec3 lo = candidates.xi[0], hi = candidates.xi[0];
-  for (const Vec3& p : exact.xi) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  for (const Vec3& p : candidates.xi) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
   const Vec3 centre = (lo + hi) / 2, half = ((hi - lo) / 2).cwiseMax(1e-300);
   auto basis = [&](const Vec3& x, auto&& column) {
     const Vec3 t = (x - centre).cwiseQuotient(half);
@@ -173,10 +173,14 @@ inline ReferencePoints compress_rule(const ReferencePoints& exact, const Referen
     for (int d = 0; d < 3; ++d) L[d][0] = 1, L[d][1] = t[d], L[d][2] = (3 * t[d] * t[d] - 1) / 2;
     for (Index i = 0; i < m; ++i) column[i] = L[0][exponents[i][0]] * L[1][exponents[i][1]] * L[2][exponents[i][2]];
   };
-  Eigen::VectorXd moments = Eigen::VectorXd::Zero(m), v(m);
-  for (size_t k = 0; k < exact.xi.size(); ++k) basis(exact.xi[k], v), moments += exact.w[k] * v;
   Eigen::MatrixXd V(m, n);
   for (Index k = 0; k < n; ++k) basis(candidates.xi[k], V.col(k));
+  Eigen::VectorXd moments = Eigen::VectorXd::Zero(m), v(m);
+  if (&exact == &candidates) {
+    moments.noalias() = V * Eigen::Map<const Eigen::VectorXd>(exact.w.data(), n);
+  } else {
+    for (size_t k = 0; k < exact.xi.size(); ++k) basis(exact.xi[k], v), moments += exact.w[k] * v;
+  }
   const Scalar volume = moments[0];  // exponents[0] is (0, 0, 0)
   const Eigen::VectorXd w = nonnegative_least_squares(V, moments, 1e-15 * volume);
   ReferencePoints c;
