@@ -3,7 +3,10 @@
 // symbolic analysis done once (statics, linear models, very large time steps), and
 // Jacobi-preconditioned conjugate gradients warm-started from the previous solution (the
 // real-time choice: at usual time steps the Newmark matrix is dominated by M / (beta dt^2) and
-// CG needs ~10 iterations).
+// CG needs ~10 iterations). Where X-FEM has enriched a node, the node's standard and enriched
+// rows are preconditioned together (their diagonal block inverted: set_coupled_rows), which
+// brought Heaviside enrichment's CG iterations on a cut bar5760 from 1.9 to 1.06 times the uncut
+// body's.
 //
 // Direct back-ends:
 //  - Eigen's SimplicialLDLT with AMD ordering: always available, no dependency.
@@ -134,6 +137,24 @@ class BasicLinearSolver {
   /// `same_matrix`: A is the matrix of the previous solve (e.g. a linear model at a fixed time
   /// step), so the direct solver reuses its numeric factorisation too.
   /// Matrix-vector products use up to threads() threads.
+  /// Block rows the CG preconditioner solves together: each group is a node's standard row and
+  /// its enriched rows (X-FEM), whose dofs the element integrals couple strongly (under Heaviside
+  /// enrichment a node's u and a enter every uncut element around it as u + H a, so the two
+  /// columns are nearly parallel there). The group's (3k x 3k) diagonal block of A is inverted;
+  /// every other dof keeps its Jacobi scaling, so a system without groups is solved as before,
+  /// bit for bit. Groups of more than 4 rows, or whose block is not positive definite, keep
+  /// Jacobi too.
+  void set_coupled_rows(std::vector<std::vector<Index>> groups) {
+    groups_ = std::move(groups);
+    group_offset_.assign(groups_.size() + 1, 0);
+    for (size_t g = 0; g < groups_.size(); ++g) {
+      const Index k = 3 * static_cast<Index>(groups_[g].size());
+      group_offset_[g + 1] = group_offset_[g] + (k <= max_group_dofs ? k * k : 0);
+    }
+    group_inverse_.assign(group_offset_.back(), 0.0);
+    group_valid_.assign(groups_.size(), 0);
+  }
+
   LinearSolveReport solve(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance = 0,
                           bool same_matrix = false) {
     return settings_.kind == LinearSolverKind::Direct
@@ -158,6 +179,54 @@ class BasicLinearSolver {
 
   LinearSolveReport solve_cg(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance);
 
+  static constexpr Index max_group_dofs = 12;
+  using GroupMatrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, max_group_dofs, max_group_dofs>;
+  using GroupVector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, max_group_dofs, 1>;
+
+  /// The inverses of the groups' diagonal blocks of A (set_coupled_rows).
+  void factorise_groups(const BlockSymmetricMatrix& A) {
+    const BlockPattern& p = A.pattern();
+    for (size_t g = 0; g < groups_.size(); ++g) {
+      const auto& rows = groups_[g];
+      const Index k = 3 * static_cast<Index>(rows.size());
+      group_valid_[g] = 0;
+      if (k > max_group_dofs) continue;
+      GroupMatrix S(k, k);
+      for (size_t a = 0; a < rows.size(); ++a)
+        for (size_t c = 0; c < rows.size(); ++c) {
+          const bool lower = rows[a] >= rows[c];
+          const int blk = lower ? p.block(rows[a], rows[c]) : p.block(rows[c], rows[a]);
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+              S(3 * a + i, 3 * c + j) =
+                  blk < 0 ? 0.0 : A.values()[9 * static_cast<size_t>(blk) + (lower ? 3 * i + j : 3 * j + i)];
+        }
+      const Eigen::LLT<GroupMatrix> llt(S);
+      if (llt.info() != Eigen::Success) continue;
+      Eigen::Map<Eigen::MatrixXd>(group_inverse_.data() + group_offset_[g], k, k) =
+          llt.solve(GroupMatrix::Identity(k, k));
+      group_valid_[g] = 1;
+    }
+  }
+  /// z = P r on the groups' rows (the Jacobi z is there already); returns the change of r.z.
+  Scalar apply_groups(const Vector& r, Vector& z) const {
+    Scalar change = 0;
+    for (size_t g = 0; g < groups_.size(); ++g) {
+      if (!group_valid_[g]) continue;
+      const auto& rows = groups_[g];
+      const Index k = 3 * static_cast<Index>(rows.size());
+      GroupVector rg(k);
+      for (size_t a = 0; a < rows.size(); ++a) rg.template segment<3>(3 * a) = r.template segment<3>(3 * rows[a]);
+      const GroupVector zg =
+          Eigen::Map<const Eigen::MatrixXd>(group_inverse_.data() + group_offset_[g], k, k) * rg;
+      for (size_t a = 0; a < rows.size(); ++a) {
+        change += rg.template segment<3>(3 * a).dot(zg.template segment<3>(3 * a) - z.template segment<3>(3 * rows[a]));
+        z.template segment<3>(3 * rows[a]) = zg.template segment<3>(3 * a);
+      }
+    }
+    return change;
+  }
+
   LinearSolverSettings settings_;
   using LDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
   std::unique_ptr<LDLT> ldlt_;  // created on first use (held by pointer: the solver stays movable)
@@ -168,6 +237,10 @@ class BasicLinearSolver {
   bool analysed_ = false, factorised_ = false;
   int threads_ = 1;
   Vector r_, z_, p_, q_, inv_diag_;
+  std::vector<std::vector<Index>> groups_;  ///< set_coupled_rows
+  std::vector<Index> group_offset_;
+  std::vector<Scalar> group_inverse_;
+  std::vector<char> group_valid_;
 };
 
 template <class Unused>
@@ -241,6 +314,7 @@ LinearSolveReport BasicLinearSolver<Unused>::solve_cg(const BlockSymmetricMatrix
                         inv_diag_[i]);
     inv_diag_[i] = 1 / inv_diag_[i];
   }
+  if (!groups_.empty()) factorise_groups(A);
   LinearSolveReport rep;
   // Reductions through core/vector_ops.hpp: independent of zeros appended to the vectors.
   const Scalar bnorm = norm(b);
@@ -251,6 +325,7 @@ LinearSolveReport BasicLinearSolver<Unused>::solve_cg(const BlockSymmetricMatrix
   A.multiply(x, q_, threads_);
   r_ = b - q_;
   z_ = inv_diag_.cwiseProduct(r_);
+  if (!groups_.empty()) apply_groups(r_, z_);
   p_ = z_;
   Scalar rz = dot(r_, z_);
   const Scalar target = tolerance * bnorm;
@@ -263,6 +338,7 @@ LinearSolveReport BasicLinearSolver<Unused>::solve_cg(const BlockSymmetricMatrix
     const Scalar alpha = rz / pq;
     Scalar rz_new, rr;
     cg_update(alpha, p_.data(), q_.data(), inv_diag_.data(), x.data(), r_.data(), z_.data(), n, rz_new, rr);
+    if (!groups_.empty()) rz_new += apply_groups(r_, z_);
     p_ = z_ + (rz_new / rz) * p_;
     rz = rz_new;
     rnorm = std::sqrt(rr);

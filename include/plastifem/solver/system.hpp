@@ -38,6 +38,17 @@ class System {
     K0 = BlockSymmetricMatrix();
     linear_.set_settings(s.linear);
     static_linear_.set_settings(s.static_linear);
+    // Each enriched node's rows, solved together by the CG preconditioner.
+    const DofMap& dofs = body.dof_map();
+    std::vector<std::vector<Index>> groups;
+    std::vector<int> group_of(dofs.num_nodes(), -1);
+    for (Index r = dofs.num_nodes(); r < dofs.num_block_rows(); ++r) {
+      const Index node = dofs.node_of(r);
+      if (group_of[node] < 0) group_of[node] = static_cast<int>(groups.size()), groups.push_back({node});
+      groups[group_of[node]].push_back(r);
+    }
+    linear_.set_coupled_rows(groups);
+    static_linear_.set_coupled_rows(std::move(groups));
     K_constant_valid_ = false;
     coefficients_ = {0, 0, 0};
     build_mass(body, s.mass);
