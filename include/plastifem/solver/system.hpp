@@ -38,12 +38,16 @@ class System {
     K0 = BlockSymmetricMatrix();
     linear_.set_settings(s.linear);
     static_linear_.set_settings(s.static_linear);
-    // Each enriched node's rows, solved together by the CG preconditioner.
+    // Each enriched node's rows, solved together by the CG preconditioner: its standard row and
+    // the added rows an element couples (a slot no element couples is an identity row, and a
+    // node with none keeps Jacobi: its steps stay bit for bit those without the slot).
     const DofMap& dofs = body.dof_map();
+    const auto& coupled = asm_.coupled_rows();
     std::vector<std::vector<Index>> groups;
     std::vector<int> group_of(dofs.num_nodes(), -1);
     for (Index r = dofs.num_nodes(); r < dofs.num_block_rows(); ++r) {
       const Index node = dofs.node_of(r);
+      if (!coupled[r] || !coupled[node]) continue;
       if (group_of[node] < 0) group_of[node] = static_cast<int>(groups.size()), groups.push_back({node});
       groups[group_of[node]].push_back(r);
     }
