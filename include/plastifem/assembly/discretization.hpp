@@ -69,11 +69,21 @@ class Discretization {
     else return false;
   }
   /// Applies a cut (enrichment/enrichment.hpp); the caller then rebuilds what depends on the dof
-  /// map. Throws InvalidArgument, with nothing changed, if the cut is refused.
-  CutReport cut(const Cut& surface, const CutOptions& options, bool shifted, int id, int& applied_id)
+  /// map. Throws InvalidArgument, with nothing changed, if the cut is refused. `rest` (3 per
+  /// node, or null for the mesh): the nodes' rest positions after plastic flow, which the
+  /// enriched elements' stiffness points are mapped with (the cut itself is placed in the
+  /// mesh's coordinates).
+  CutReport cut(const Cut& surface, const CutOptions& options, bool shifted, int id, int& applied_id,
+                const Vector* rest = nullptr)
     requires Enriched
   {
-    return enrichment_.apply(mesh_, dofs_, surface, options, shifted, id, applied_id);
+    return enrichment_.apply(mesh_, dofs_, surface, options, shifted, id, applied_id, rest);
+  }
+  /// Gives element e the rest shape X (plastic flow; checked by the caller): its elastic data
+  /// and, if it is enriched, its pieces' stiffness points.
+  void set_rest_shape(Index e, const ElementNodes<E>& X) {
+    data_.set_rest_shape(e, X, /*checked=*/true);
+    if constexpr (Enriched) enrichment_.set_rest_shape(e, X);
   }
   Index num_dofs() const { return assembler_.num_dofs(); }
   /// Diameter of the mesh's bounding box (the length scale of increment tests).

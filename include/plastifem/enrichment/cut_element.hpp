@@ -54,7 +54,8 @@ struct CutElement {
 
   int num_sides = 1;                                   ///< 2: cut; 1: blending (one side, the element's rule)
   int cut = -1;                                        ///< the cut that splits it (-1: none)
-  std::array<PointSet<E>, 2> stiffness;                ///< quadrature per side
+  std::array<PointSet<E>, 2> stiffness;                ///< quadrature per side, mapped with the rest shape
+  std::array<ReferencePoints, 2> stiffness_rule;       ///< the same points in reference coordinates
   std::array<std::vector<Vec3>, 2> mass_xi;            ///< mass rule per side: reference points
   std::array<std::vector<Scalar>, 2> mass_dv;          ///< and their w det J
   std::array<Scalar, 2> volume{0, 0};                  ///< rest volume of each side
@@ -62,6 +63,16 @@ struct CutElement {
   std::vector<EnrichedDof> enriched;                   ///< in the order of the element's extension rows
 
   int span() const { return N + static_cast<int>(enriched.size()); }
+
+  /// Maps the stiffness rules with rest shape X (the mesh's element, or its plastic rest shape:
+  /// the cut stays where it is in reference coordinates, a material surface).
+  void set_rest_shape(const ElementNodes<E>& X) {
+    for (int s = 0; s < num_sides; ++s) {
+      PointSet<E>& ps = stiffness[s];
+      ps.G.clear(), ps.dv.clear();
+      for (size_t k = 0; k < stiffness_rule[s].xi.size(); ++k) ps.add(X, stiffness_rule[s].xi[k], stiffness_rule[s].w[k]);
+    }
+  }
 
   /// Effective nodes of side s: x + sum psi^s a at the enriched dofs' nodes (a read from u).
   ElementNodes<E> side_nodes(const ElementNodes<E>& x, const Vector& u, int s) const {

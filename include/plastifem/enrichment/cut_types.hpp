@@ -51,6 +51,7 @@ struct CutReport {
   int dropped_nodes = 0;      ///< nodes of cut elements left unenriched (sliver support)
   Index dofs_added = 0;
   int stiffness_points = 0;   ///< integration points of the new cut elements' sides (stiffness rule)
+  int plastic_frozen = 0;     ///< with a plastic policy: enriched elements whose plastic flow stopped
   double ms = 0;              ///< time to classify, split and extend the dof map (not the solver's rebuild)
 };
 

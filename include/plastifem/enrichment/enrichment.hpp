@@ -68,9 +68,12 @@ class Enrichment {
   Scalar level_set(int c, Index i) const { return cuts_[c].phi[i]; }
 
   /// Applies `surface` as a new cut (id < 0) or as the grown surface of cut `id` (see the file
-  /// comment). Throws InvalidArgument, with nothing changed, if the cut is refused.
+  /// comment). Throws InvalidArgument, with nothing changed, if the cut is refused. The cut is
+  /// placed in the mesh's coordinates; the new enriched elements' stiffness points are mapped
+  /// with the rest positions `rest` (3 per node: the material mesh after plastic flow), or with
+  /// the mesh's if null.
   CutReport apply(const Mesh<E>& mesh, DofMap& dofs, const Cut& surface, const CutOptions& opt, bool shifted, int id,
-                  int& applied_id) {
+                  int& applied_id, const Vector* rest = nullptr) {
     const auto t0 = std::chrono::steady_clock::now();
     opt.validate();
     if (id >= num_cuts()) fail<InvalidArgument>("cut: no cut with id {}", id);
@@ -221,16 +224,26 @@ class Enrichment {
         el.cut = c;
         el.num_sides = 2;
         const ElementNodes<E> X = mesh.element_nodes(e);
+        // A cut along the element's faces leaves one side empty: the other is the whole
+        // element, integrated with the element's own rules (so that such a cut gives exactly
+        // what duplicated nodes give, with every model).
+        const Scalar V = side_volume[e][0] + side_volume[e][1];
+        const bool whole[2] = {side_volume[e][1] <= 1e-12 * V, side_volume[e][0] <= 1e-12 * V};
         for (int s = 0; s < 2; ++s) {
           el.pieces[s] = pieces[e][s];
-          el.stiffness[s] = point_set(X, stiffness_points(pieces[e][s], opt.compress_quadrature));
-          rep.stiffness_points += el.stiffness[s].size();
-          const ReferencePoints m = mass_points(pieces[e][s]);
+          el.stiffness_rule[s] = whole[s]       ? gauss_rule<E::stiffness_degree>()
+                                 : whole[1 - s] ? ReferencePoints{}
+                                                : stiffness_points(pieces[e][s], opt.compress_quadrature);
+          rep.stiffness_points += static_cast<int>(el.stiffness_rule[s].xi.size());
+          const ReferencePoints m = whole[s]       ? gauss_rule<E::mass_degree>()
+                                    : whole[1 - s] ? ReferencePoints{}
+                                                   : mass_points(pieces[e][s]);
           el.mass_xi[s] = m.xi;
           el.mass_dv[s].resize(m.xi.size());
           for (size_t k = 0; k < m.xi.size(); ++k) el.mass_dv[s][k] = m.w[k] * jacobian<E>(X, m.xi[k]).determinant();
           el.volume[s] = side_volume[e][s];
         }
+        el.set_rest_shape(rest_nodes(mesh, e, rest));
         // An element this cut now splits may already carry another cut's (blending) dofs: their
         // psi is constant over the element, the same on both sides. (This cut's own older dofs,
         // from a shorter surface, are given their values per side below.)
@@ -277,13 +290,12 @@ class Enrichment {
         if (!split && el.enriched.empty()) {  // a new blending element: its own Gauss rule
           const ElementNodes<E> X = mesh.element_nodes(e);
           el.num_sides = 1;
-          el.stiffness[0] = gauss_point_set<E>(X);
-          const auto q = E::template quadrature<E::mass_degree>();
-          el.mass_xi[0].clear(), el.mass_dv[0].clear();
-          for (int k = 0; k < q.size; ++k) {
-            el.mass_xi[0].push_back(q.points[k]);
-            el.mass_dv[0].push_back(q.weights[k] * jacobian<E>(X, q.points[k]).determinant());
-          }
+          el.stiffness_rule[0] = gauss_rule<E::stiffness_degree>();
+          el.set_rest_shape(rest_nodes(mesh, e, rest));
+          const ReferencePoints q = gauss_rule<E::mass_degree>();
+          el.mass_xi[0] = q.xi;
+          el.mass_dv[0].resize(q.xi.size());
+          for (size_t k = 0; k < q.xi.size(); ++k) el.mass_dv[0][k] = q.w[k] * jacobian<E>(X, q.xi[k]).determinant();
           el.volume = {element_volume<E>(X), 0};
           ++rep.blending_elements;
         }
@@ -318,6 +330,12 @@ class Enrichment {
   Index row(int c, Index i) const { return cuts_[c].row[i]; }
   Scalar sign(int c, Index i) const { return cuts_[c].H[i] < 0 ? -1.0 : 1.0; }
 
+  /// Element e has a new rest shape X (plastic flow): its stiffness points follow, if it is
+  /// enriched (enrichment/cut_element.hpp).
+  void set_rest_shape(Index e, const ElementNodes<E>& X) {
+    if (!index_.empty() && index_[e] >= 0) elements_[index_[e]].set_rest_shape(X);
+  }
+
   /// The enriched dofs of node i (rows), over every cut.
   std::vector<Index> rows_of(Index i) const {
     std::vector<Index> r;
@@ -343,24 +361,32 @@ class Enrichment {
   };
 
   /// The quadrature degrees of linear elasticity's integrands (enrichment/subdivision.hpp).
-  static constexpr int stiffness_degree = E::num_nodes == 4 ? 1 : (E::num_nodes == 10 ? 2 : 4);
   static constexpr int mass_degree = E::num_nodes == 4 ? 2 : (E::num_nodes == 10 ? 4 : 5);
   static ReferencePoints mass_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<mass_degree>(p); }
   /// A side's stiffness rule: the pieces' rules, compressed (CutOptions::compress_quadrature) to
   /// at most as many points as the integrand of linear elasticity has polynomials, with the same
   /// integrals of them (subdivision.hpp, compress_rule; kept whole if compression fails).
   static ReferencePoints stiffness_points(const std::vector<ReferenceTet>& p, bool compress) {
-    ReferencePoints r = piece_quadrature<stiffness_degree>(p);
+    ReferencePoints r = piece_quadrature<piece_stiffness_degree<E>>(p);
     static const std::vector<std::array<int, 3>> exponents = stiffness_exponents<E>();
     if (!compress || r.xi.size() <= exponents.size()) return r;
-    ReferencePoints c = compress_rule(r, r, exponents);
+    ReferencePoints c = compress_rule(r, exponents);
     return c.xi.empty() ? r : c;
   }
 
-  static PointSet<E> point_set(const ElementNodes<E>& X, const ReferencePoints& r) {
-    PointSet<E> ps;
-    for (size_t k = 0; k < r.xi.size(); ++k) ps.add(X, r.xi[k], r.w[k]);
-    return ps;
+  /// The element's own (Gauss) rule of that degree.
+  template <int Degree>
+  static ReferencePoints gauss_rule() {
+    ReferencePoints r;
+    const auto q = E::template quadrature<Degree>();
+    for (int k = 0; k < q.size; ++k) r.xi.push_back(q.points[k]), r.w.push_back(q.weights[k]);
+    return r;
+  }
+  static ElementNodes<E> rest_nodes(const Mesh<E>& mesh, Index e, const Vector* rest) {
+    if (!rest) return mesh.element_nodes(e);
+    ElementNodes<E> X;
+    for (int a = 0; a < N; ++a) X.col(a) = rest->template segment<3>(3 * mesh.element(e)[a]);
+    return X;
   }
 
   /// The side of an uncut element: 0 if all its nodes are on or above the cut, else 1.

@@ -134,6 +134,11 @@ ReferencePoints piece_quadrature(const std::vector<ReferenceTet>& pieces) {
   return r;
 }
 
+/// The total degree of linear elasticity's stiffness integrand on an affine element (see
+/// stiffness_exponents): the degree of the pieces' stiffness rule.
+template <FiniteElement E>
+inline constexpr int piece_stiffness_degree = E::num_nodes == 4 ? 1 : (E::num_nodes == 10 ? 2 : 4);
+
 /// Exponents (a, b, c) of the polynomials x^a y^b z^c (reference coordinates) that linear
 /// elasticity's stiffness integrand B^T D B det J spans on an affine element: Tet4 total degree
 /// <= 1 (the integrand is constant; one point per piece is kept), Tet10 total degree <= 2, Hex8
@@ -141,7 +146,7 @@ ReferencePoints piece_quadrature(const std::vector<ReferenceTet>& pieces) {
 /// product of two has degree <= 2 in each and <= 4 in all): 4, 10 and 23 polynomials.
 template <FiniteElement E>
 std::vector<std::array<int, 3>> stiffness_exponents() {
-  constexpr int total = E::num_nodes == 4 ? 1 : (E::num_nodes == 10 ? 2 : 4);
+  constexpr int total = piece_stiffness_degree<E>;
   constexpr int each = E::num_nodes == 8 ? 2 : total;
   std::vector<std::array<int, 3>> e;
   for (int a = 0; a <= each; ++a)
@@ -151,21 +156,19 @@ std::vector<std::array<int, 3>> stiffness_exponents() {
   return e;
 }
 
-/// A rule with the same integrals as `exact` of the polynomials `exponents`, with at most as
-/// many points as there are polynomials, all of them points of `candidates`, with non-negative
+/// A rule with the same integrals as `rule` of the polynomials `exponents`, with at most as
+/// many points as there are polynomials, all of them points of `rule`, with non-negative
 /// weights (Tchakaloff's theorem says such a rule exists among the points of any positive rule
 /// exact for the space; Sommariva and Vianello, "Compression of multivariate discrete measures
 /// and applications", 2015, find it by non-negative least squares on the moment equations
-/// V w = m, V the polynomials at the candidates, m the moments). The polynomials are Legendre
-/// products on the candidates' bounding box: they span the same space as the monomials (it is
+/// V w = m, V the polynomials at the points, m = V w_rule the moments). The polynomials are
+/// Legendre products on the points' bounding box: they span the same space as the monomials (it is
 /// invariant under scaling and shifting each coordinate) and keep V well conditioned on a small
-/// side. Returns an empty rule if the candidates cannot carry the moments to 1e-13 of the side's
-/// volume.
-inline ReferencePoints compress_rule(const ReferencePoints& exact, const ReferencePoints& candidates,
-                                     const std::vector<std::array<int, 3>>& exponents) {
-  const Index m = static_cast<Index>(exponents.size()), n = static_cast<Index>(candidates.xi.size());
-  Vec3 lo = candidates.xi[0], hi = candidates.xi[0];
-  for (const Vec3& p : candidates.xi) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+/// side. Returns an empty rule if no subset carries the moments to 1e-13 of the side's volume.
+inline ReferencePoints compress_rule(const ReferencePoints& rule, const std::vector<std::array<int, 3>>& exponents) {
+  const Index m = static_cast<Index>(exponents.size()), n = static_cast<Index>(rule.xi.size());
+  Vec3 lo = rule.xi[0], hi = rule.xi[0];
+  for (const Vec3& p : rule.xi) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
   const Vec3 centre = (lo + hi) / 2, half = ((hi - lo) / 2).cwiseMax(1e-300);
   auto basis = [&](const Vec3& x, auto&& column) {
     const Vec3 t = (x - centre).cwiseQuotient(half);
@@ -174,19 +177,14 @@ inline ReferencePoints compress_rule(const ReferencePoints& exact, const Referen
     for (Index i = 0; i < m; ++i) column[i] = L[0][exponents[i][0]] * L[1][exponents[i][1]] * L[2][exponents[i][2]];
   };
   Eigen::MatrixXd V(m, n);
-  for (Index k = 0; k < n; ++k) basis(candidates.xi[k], V.col(k));
-  Eigen::VectorXd moments = Eigen::VectorXd::Zero(m), v(m);
-  if (&exact == &candidates) {
-    moments.noalias() = V * Eigen::Map<const Eigen::VectorXd>(exact.w.data(), n);
-  } else {
-    for (size_t k = 0; k < exact.xi.size(); ++k) basis(exact.xi[k], v), moments += exact.w[k] * v;
-  }
+  for (Index k = 0; k < n; ++k) basis(rule.xi[k], V.col(k));
+  const Eigen::VectorXd moments = V * Eigen::Map<const Eigen::VectorXd>(rule.w.data(), n);
   const Scalar volume = moments[0];  // exponents[0] is (0, 0, 0)
   const Eigen::VectorXd w = nonnegative_least_squares(V, moments, 1e-15 * volume);
   ReferencePoints c;
   if ((V * w - moments).lpNorm<Eigen::Infinity>() > 1e-13 * volume) return c;
   for (Index k = 0; k < n; ++k)
-    if (w[k] > 0) c.xi.push_back(candidates.xi[k]), c.w.push_back(w[k]);
+    if (w[k] > 0) c.xi.push_back(rule.xi[k]), c.w.push_back(w[k]);
   return c;
 }
 

@@ -33,14 +33,14 @@ template <FiniteElement E, class Elastic, bool PerVertexRotation>
 class Plasticity {
  public:
   using Flow = ElementFlow<E, Elastic, PerVertexRotation>;
-  using Body = Discretization<E, Elastic>;
   static constexpr int N = E::num_nodes;
   static constexpr int P = Flow::P;    ///< flow points per element
   static constexpr int NR = Flow::NR;  ///< rotation entries per element
 
   /// Sizes the table for `body` (rest = the mesh, thresholds from `prm`) and this update's
   /// work space; factorises nothing yet.
-  void init(const Body& body, const PlasticParams& prm, PlasticTable& table) {
+  template <bool Enriched>
+  void init(const Discretization<E, Elastic, Enriched>& body, const PlasticParams& prm, PlasticTable& table) {
     const Mesh<E>& mesh = body.mesh();
     const Index ne = mesh.num_elements();
     table.rest = Eigen::Map<const Vector>(mesh.nodes().data(), 3 * mesh.num_nodes());
@@ -115,7 +115,8 @@ class Plasticity {
   /// comment). The body's element data must be at `table`'s rest shapes. On change, `table`
   /// gets the new rest shapes and thresholds and the version `version`.
   /// `anchor` (per node, may be empty): the nodes the material mesh stays put at (fusion.hpp).
-  PlasticReport update(const Body& body, const Vector& u, Scalar dt, const PlasticParams& prm, PlasticTable& table,
+  template <bool Enriched>
+  PlasticReport update(const Discretization<E, Elastic, Enriched>& body, const Vector& u, Scalar dt, const PlasticParams& prm, PlasticTable& table,
                        std::uint64_t version, int threads, const std::vector<char>& anchor = {}) {
     PlasticReport rep;
     const Mesh<E>& mesh = body.mesh();
@@ -150,7 +151,7 @@ class Plasticity {
     std::vector<char>& off = off_new_;
     off.assign(table.off.begin(), table.off.end());
     for (Index e = 0; e < ne; ++e)
-      if (result_[e] == FlowResult::Refused) off[e] = 1, ++rep.switched_off;
+      if (result_[e] == FlowResult::Refused) off[e] = PlasticTable::switched_off, ++rep.switched_off;
     if (!fusion_built_) {
       fusion_.build(mesh);
       fusion_built_ = true;
@@ -170,7 +171,7 @@ class Plasticity {
             check_shape<E>(X_new).min_scaled_jacobian >= check_shape<E>(element_of(mesh, e, rest)).min_scaled_jacobian)
           continue;
         accepted = false;
-        if (!off[e]) off[e] = 1, ++rep.switched_off;
+        if (!off[e]) off[e] = PlasticTable::switched_off, ++rep.switched_off;
         changed_[e] = 0;
       }
     }
@@ -199,7 +200,8 @@ class Plasticity {
 
   /// Brings the body's element data to the table's rest shapes (see the file comment).
   /// Returns whether anything changed.
-  bool sync(Body& body, const PlasticTable& table) {
+  template <bool Enriched>
+  bool sync(Discretization<E, Elastic, Enriched>& body, const PlasticTable& table) {
     if (table.version == synced_version_) return false;
     const Mesh<E>& mesh = body.mesh();
     const Index n = mesh.num_nodes();
@@ -213,7 +215,7 @@ class Plasticity {
       for (int a = 0; a < N && !m; ++a) m = node_moved_[c[a]];
       if (!m) continue;
       const ElementNodes<E> X = element_of(mesh, e, table.rest);
-      body.data().set_rest_shape(e, X, /*checked=*/true);
+      body.set_rest_shape(e, X);  // checked by the update that proposed it
       // The element's own flow gradients (copy-on-write, as the element data).
       const std::uint32_t old = grad_of_[e];
       if (grad_users_[old] == 1) {

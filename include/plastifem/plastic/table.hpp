@@ -16,7 +16,8 @@
 //   rotation    the accumulated plastic rotation Pi (eq. 8) at the same places, as a unit
 //               quaternion (w, x, y, z);
 //   volume      per element: its rest volume over its original volume (beta of eq. 9);
-//   off         per element: plasticity switched off (its rest shape would have degenerated);
+//   off         per element: plasticity switched off, because its rest shape would have
+//               degenerated (switched_off) or because a cut enriched it (cut);
 //   version     changes whenever `rest` does: the solver re-prepares the element data of the
 //               elements whose rest nodes moved when it meets a table of another version.
 #include <plastifem/core/types.hpp>
@@ -30,7 +31,8 @@ namespace plastifem {
 struct PlasticTable {
   Vector rest;
   std::vector<Scalar> tau, alpha, tau_R, rotation, volume;
-  std::vector<std::uint8_t> off;
+  std::vector<std::uint8_t> off;  ///< per element: 0 flows; switched_off (shape safeguard) or cut (enriched) do not
+  static constexpr std::uint8_t switched_off = 1, cut = 2;
   std::uint64_t version = 0;
 
   void resize(Index) {}  // (the State's dof count; the table is sized by the plastic policy)

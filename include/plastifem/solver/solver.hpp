@@ -37,8 +37,6 @@ class Solver {
                                        "(plastic/plastic.hpp: the PlasticModel concept)");
   static_assert(EnrichmentModel<Enrich>, "the enrichment policy must be NoEnrichment, Heaviside or ShiftedHeaviside "
                                          "(enrichment/enrichment_policy.hpp: the EnrichmentModel concept)");
-  static_assert(!(Plastic::active && Enrich::active),
-                "plasticity and X-FEM cutting in one Solver are not supported yet: choose one of the two policies");
   static constexpr bool enriched = Enrich::active;
 
   struct NoPlasticEngine {};
@@ -230,6 +228,17 @@ class Solver {
   void sync_rest_shapes(const StateType& s);
   /// The plastic update after a converged (sub-)step of dt into state s (dynamics).
   void plastic_update(StateType& s, Scalar dt, StepReport& r);
+
+  /// Plasticity and cutting: the rest positions the enriched elements' points are mapped with
+  /// (the material mesh; null without plasticity: the mesh's).
+  const Vector* rest_positions() const {
+    if constexpr (plastic) return &current_.plastic.rest;
+    else return nullptr;
+  }
+  /// Plasticity and cutting: an enriched element's plastic flow stops when it is cut
+  /// (docs/xfem.md: the flow's deformation gradient is the standard element's, which the
+  /// enrichment makes discontinuous); its rest shape still follows the material mesh.
+  void freeze_enriched_plasticity();
 
   /// X-FEM: the enriched dofs' share of a body force (empty without a cut).
   typename Loads<E>::EnrichedBodyForce enriched_body_force() const {
@@ -675,8 +684,9 @@ CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOption
   requires Enrich::active
 {
   int id = -1;
-  cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id);
+  cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id, rest_positions());
   rebuild();
+  freeze_enriched_plasticity();
   dynamics_.invalidate();
   return CutHandle{id};
 }
@@ -688,10 +698,24 @@ void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surfa
 {
   if (h.id < 0) fail<InvalidArgument>("grow_cut: an invalid cut handle");
   int id = -1;
-  cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id);
+  cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id, rest_positions());
   if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) {
     rebuild();
+    freeze_enriched_plasticity();
     dynamics_.invalidate();
+  }
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::freeze_enriched_plasticity() {
+  if constexpr (plastic && enriched) {
+    using Table = typename PlasticParts<Plastic>::State;  // PlasticTable
+    std::vector<std::uint8_t>& off = current_.plastic.off;
+    for (size_t k = 0; k < body_.enrichment().elements().size(); ++k) {
+      const Index e = body_.enrichment().element_of(k);
+      if (off[e] != Table::cut) off[e] = Table::cut, ++cut_report_.plastic_frozen;
+    }
   }
 }
 

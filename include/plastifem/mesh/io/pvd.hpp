@@ -29,10 +29,17 @@ class PvdWriter {
   template <FiniteElement E>
   std::filesystem::path write(double time, const Mesh<E>& mesh, const std::vector<Field>& point_data = {},
                               const std::vector<Field>& cell_data = {}) {
+    return write_frame(time, [&](const std::filesystem::path& vtu) { write_vtu(vtu, mesh, point_data, cell_data, options_); });
+  }
+
+  /// Frame number num_frames() at `time`, written by `write_file(path)` (a .vtu of another
+  /// writer: io::write_cut_vtu, enrichment/output.hpp), then the .pvd updated. Returns the path.
+  template <class WriteFile>
+  std::filesystem::path write_frame(double time, WriteFile&& write_file) {
     if (!std::isfinite(time)) fail<InvalidArgument>("PVD frame time must be finite, got {}", time);
     const std::string name = fmt::format("{}_{:04d}.vtu", base_, frames_.size());
     const std::filesystem::path vtu = dir_ / name;
-    write_vtu(vtu, mesh, point_data, cell_data, options_);
+    write_file(vtu);
     frames_.emplace_back(time, name);
     write_collection();
     return vtu;
