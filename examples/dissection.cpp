@@ -15,7 +15,6 @@
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>
-#include <fmt/os.h>
 
 #include <filesystem>
 #include <string>
@@ -39,16 +38,11 @@ void run(const Options& o) {
   s.fix(mesh.node_set("zmin"));
   s.add_gravity(Vec3(9.81, 0, 0));
   const std::string name = fmt::format("dissection_{}_{}", Model::name, E::name);
-  std::vector<std::pair<double, std::string>> frames;
+  io::PvdWriter pvd(o.out, name);
   auto write = [&] {
-    const std::string file = fmt::format("{}_{:04d}.vtu", name, frames.size());
-    io::write_cut_vtu(o.out + "/" + file, mesh, s.enrichment(), s.displacement());
-    frames.emplace_back(s.time(), file);
-    auto pvd = fmt::output_file(fmt::format("{}/{}.pvd", o.out, name));
-    pvd.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n");
-    for (const auto& [t, f] : frames) pvd.print("    <DataSet timestep=\"{}\" group=\"\" part=\"0\" file=\"{}\"/>\n", t, f);
-    pvd.print("  </Collection>\n</VTKFile>\n");
+    pvd.write_frame(s.time(), [&](const auto& file) { io::write_cut_vtu(file, mesh, s.enrichment(), s.displacement()); });
   };
+
   // The falling part's volume and strain energy: its pieces and whole elements above z = 0.1.
   auto falling = [&](Scalar& volume, Scalar& energy) {
     volume = energy = 0;

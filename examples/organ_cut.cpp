@@ -14,7 +14,6 @@
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>
-#include <fmt/os.h>
 
 #include <cmath>
 #include <filesystem>
@@ -84,15 +83,9 @@ int main(int argc, char** argv) try {
   s.add_gravity(Vec3(0, 0, -9.81));
   fmt::print("organ: {} Tet4, {} nodes; scalpel down 2.5 mm every 10 steps (dt = 1 ms)\n", mesh.num_elements(),
              mesh.num_nodes());
-  std::vector<std::pair<double, std::string>> frames;
+  io::PvdWriter pvd(out, "organ_cut");
   auto write = [&] {
-    const std::string file = fmt::format("organ_cut_{:04d}.vtu", frames.size());
-    io::write_cut_vtu(out + "/" + file, mesh, s.enrichment(), s.displacement());
-    frames.emplace_back(s.time(), file);
-    auto pvd = fmt::output_file(out + "/organ_cut.pvd");
-    pvd.print("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n");
-    for (const auto& [t, f] : frames) pvd.print("    <DataSet timestep=\"{}\" group=\"\" part=\"0\" file=\"{}\"/>\n", t, f);
-    pvd.print("  </Collection>\n</VTKFile>\n");
+    pvd.write_frame(s.time(), [&](const auto& file) { io::write_cut_vtu(file, mesh, s.enrichment(), s.displacement()); });
   };
   write();
   std::optional<CutHandle> cut;
@@ -120,7 +113,7 @@ int main(int argc, char** argv) try {
       fmt::print("  t = {:.3f} s: Newton {}, CG {}, {:.2f} ms/step, kinetic energy {:.3e} J\n", s.time(), r.newton_iterations,
                  r.linear_iterations, r.wall_ms, s.kinetic_energy());
   }
-  fmt::print("done: {} in {}\n", frames.size(), out + "/organ_cut.pvd");
+  fmt::print("done: {} frames in {}\n", pvd.num_frames(), pvd.pvd_path().string());
   return 0;
 } catch (const std::exception& e) {
   fmt::print(stderr, "organ_cut: {}\n", e.what());
