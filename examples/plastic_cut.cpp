@@ -53,8 +53,9 @@ void run(const Options& o) {
   };
 
   const Scalar xc = 5.5;
-  // The free half's deformed volume and rest volume: its pieces (side 0, x > xc) and whole
-  // elements beyond the cut, over their stiffness points (mapped with the rest shapes).
+  // The free half's deformed volume and rest volume: its pieces (side 0, x > xc), over their
+  // stiffness points (mapped with the rest shapes), and its whole elements, at their current
+  // and material-mesh nodes.
   auto free_half = [&](Scalar& volume, Scalar& rest) {
     volume = rest = 0;
     const Vector& u = s.displacement();
@@ -122,7 +123,6 @@ void run(const Options& o) {
     }
   }
 }
-
 
 }  // namespace
 

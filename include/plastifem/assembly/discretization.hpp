@@ -79,10 +79,11 @@ class Discretization {
   {
     return enrichment_.apply(mesh_, dofs_, surface, options, shifted, id, applied_id, rest);
   }
-  /// Gives element e the rest shape X (plastic flow; checked by the caller): its elastic data
-  /// and, if it is enriched, its pieces' stiffness points.
-  void set_rest_shape(Index e, const ElementNodes<E>& X) {
-    data_.set_rest_shape(e, X, /*checked=*/true);
+  /// Gives element e the rest shape X (plastic flow): its elastic data and, if it is enriched,
+  /// its pieces' stiffness points. Throws InvalidArgument, with nothing changed, if X fails the
+  /// rest-shape test (unless the caller has `checked` it).
+  void set_rest_shape(Index e, const ElementNodes<E>& X, bool checked = false) {
+    data_.set_rest_shape(e, X, checked);
     if constexpr (Enriched) enrichment_.set_rest_shape(e, X);
   }
   Index num_dofs() const { return assembler_.num_dofs(); }

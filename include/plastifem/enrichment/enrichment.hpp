@@ -225,25 +225,21 @@ class Enrichment {
         el.num_sides = 2;
         const ElementNodes<E> X = mesh.element_nodes(e);
         // A cut along the element's faces leaves one side empty: the other is the whole
-        // element, integrated with the element's own rules (so that such a cut gives exactly
-        // what duplicated nodes give, with every model).
+        // element, integrated with the element's own rules (so that such a cut gives what
+        // duplicated nodes give; docs/xfem.md says for which models exactly).
         const Scalar V = side_volume[e][0] + side_volume[e][1];
-        const bool whole[2] = {side_volume[e][1] <= 1e-12 * V, side_volume[e][0] <= 1e-12 * V};
+        const bool whole[2] = {V > 0 && side_volume[e][1] <= 1e-12 * V, V > 0 && side_volume[e][0] <= 1e-12 * V};
         for (int s = 0; s < 2; ++s) {
-          el.pieces[s] = pieces[e][s];
-          el.stiffness_rule[s] = whole[s]       ? gauss_rule<E::stiffness_degree>()
-                                 : whole[1 - s] ? ReferencePoints{}
-                                                : stiffness_points(pieces[e][s], opt.compress_quadrature);
+          const bool empty = whole[1 - s];
+          el.pieces[s] = empty ? std::vector<ReferenceTet>{} : pieces[e][s];
+          el.stiffness_rule[s] = whole[s] ? gauss_rule<E::stiffness_degree>()
+                                 : empty  ? ReferencePoints{}
+                                          : stiffness_points(pieces[e][s], opt.compress_quadrature);
           rep.stiffness_points += static_cast<int>(el.stiffness_rule[s].xi.size());
-          const ReferencePoints m = whole[s]       ? gauss_rule<E::mass_degree>()
-                                    : whole[1 - s] ? ReferencePoints{}
-                                                   : mass_points(pieces[e][s]);
-          el.mass_xi[s] = m.xi;
-          el.mass_dv[s].resize(m.xi.size());
-          for (size_t k = 0; k < m.xi.size(); ++k) el.mass_dv[s][k] = m.w[k] * jacobian<E>(X, m.xi[k]).determinant();
+          set_mass_rule(el, s, X, whole[s] ? gauss_rule<E::mass_degree>() : empty ? ReferencePoints{} : mass_points(pieces[e][s]));
           el.volume[s] = side_volume[e][s];
         }
-        el.set_rest_shape(rest_nodes(mesh, e, rest));
+        el.set_rest_shape(rest ? mesh.element_nodes(e, *rest) : X);
         // An element this cut now splits may already carry another cut's (blending) dofs: their
         // psi is constant over the element, the same on both sides. (This cut's own older dofs,
         // from a shorter surface, are given their values per side below.)
@@ -291,11 +287,8 @@ class Enrichment {
           const ElementNodes<E> X = mesh.element_nodes(e);
           el.num_sides = 1;
           el.stiffness_rule[0] = gauss_rule<E::stiffness_degree>();
-          el.set_rest_shape(rest_nodes(mesh, e, rest));
-          const ReferencePoints q = gauss_rule<E::mass_degree>();
-          el.mass_xi[0] = q.xi;
-          el.mass_dv[0].resize(q.xi.size());
-          for (size_t k = 0; k < q.xi.size(); ++k) el.mass_dv[0][k] = q.w[k] * jacobian<E>(X, q.xi[k]).determinant();
+          el.set_rest_shape(rest ? mesh.element_nodes(e, *rest) : X);
+          set_mass_rule(el, 0, X, gauss_rule<E::mass_degree>());
           el.volume = {element_volume<E>(X), 0};
           ++rep.blending_elements;
         }
@@ -360,7 +353,8 @@ class Enrichment {
     DofMap dofs;
   };
 
-  /// The quadrature degrees of linear elasticity's integrands (enrichment/subdivision.hpp).
+  /// The degree of the mass integrand N_a N_b det J on a piece (exact on affine elements but for
+  /// Hex8's enriched dofs: degree 6 needed, 5 tabulated; docs/xfem.md).
   static constexpr int mass_degree = E::num_nodes == 4 ? 2 : (E::num_nodes == 10 ? 4 : 5);
   static ReferencePoints mass_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<mass_degree>(p); }
   /// A side's stiffness rule: the pieces' rules, compressed (CutOptions::compress_quadrature) to
@@ -382,11 +376,12 @@ class Enrichment {
     for (int k = 0; k < q.size; ++k) r.xi.push_back(q.points[k]), r.w.push_back(q.weights[k]);
     return r;
   }
-  static ElementNodes<E> rest_nodes(const Mesh<E>& mesh, Index e, const Vector* rest) {
-    if (!rest) return mesh.element_nodes(e);
-    ElementNodes<E> X;
-    for (int a = 0; a < N; ++a) X.col(a) = rest->template segment<3>(3 * mesh.element(e)[a]);
-    return X;
+  /// Side s's mass rule: reference points r mapped with the mesh's element X (the mass stays
+  /// the mesh's, under plasticity too).
+  static void set_mass_rule(Element& el, int s, const ElementNodes<E>& X, const ReferencePoints& r) {
+    el.mass_xi[s] = r.xi;
+    el.mass_dv[s].resize(r.xi.size());
+    for (size_t k = 0; k < r.xi.size(); ++k) el.mass_dv[s][k] = r.w[k] * jacobian<E>(X, r.xi[k]).determinant();
   }
 
   /// The side of an uncut element: 0 if all its nodes are on or above the cut, else 1.

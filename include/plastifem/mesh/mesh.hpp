@@ -61,6 +61,12 @@ class Mesh {
     for (int a = 0; a < E::num_nodes; ++a) X.col(a) = nodes_.col(elements_[e][a]);
     return X;
   }
+  /// Element e's nodes at other positions of the mesh's nodes (3 per node: a material mesh).
+  ElementNodes<E> element_nodes(Index e, const Vector& positions) const {
+    ElementNodes<E> X;
+    for (int a = 0; a < E::num_nodes; ++a) X.col(a) = positions.segment<3>(3 * elements_[e][a]);
+    return X;
+  }
 
   /// Global node ids of a face, in the element's local face order (outward normal).
   std::array<Index, E::nodes_per_face> face_nodes(FaceRef f) const {

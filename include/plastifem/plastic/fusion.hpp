@@ -20,7 +20,10 @@
 // is held (dx = 0 there) for the solve, and then each piece is moved so that the mean dx of
 // its anchored nodes (those the solver holds in the world: a clamp) is zero, or of all its
 // nodes if none is: the material mesh stays where the body is held, and a symmetric flow
-// stays symmetric.
+// stays symmetric. Frozen nodes (those of elements a cut enriched, which stop flowing) are held
+// exactly: their elements keep their rest shapes, and a piece cut free is not moved by flow on
+// the other side of the cut (the two meet only at those nodes); a piece with a frozen node
+// needs no other held node and is not moved as a whole.
 //
 // Why not the plain one-pass average of the paper's formula, with each element left where it
 // was: a uniform plastic stretch of a bar then moves only its end nodes (every interior node
@@ -43,8 +46,9 @@ class MaterialFusion {
   static constexpr int N = E::num_nodes;
 
   /// L for `mesh` (one scalar row per node: the three coordinates solve with the same matrix),
-  /// its held nodes, and its factorisation.
-  void build(const Mesh<E>& mesh) {
+  /// its held nodes, and its factorisation. `frozen` (per node, may be empty): nodes held at
+  /// their rest positions (see the file comment).
+  void build(const Mesh<E>& mesh, const std::vector<char>& frozen = {}) {
     const Index n = mesh.num_nodes();
     // One held node per connected piece (its smallest), and every node no element uses.
     std::vector<Index> parent(n);
@@ -64,18 +68,23 @@ class MaterialFusion {
     }
     piece_.assign(n, -1);
     piece_size_.clear();
+    pinned_.clear();
     held_.assign(n, 0);
+    const bool any_frozen = static_cast<Index>(frozen.size()) == n;
     for (Index i = 0; i < n; ++i) {
       if (!used[i]) {
         held_[i] = 1;
         continue;
       }
       const Index root = find(i);
-      if (piece_[root] < 0) piece_[root] = static_cast<Index>(piece_size_.size()), piece_size_.push_back(0);
+      if (piece_[root] < 0)
+        piece_[root] = static_cast<Index>(piece_size_.size()), piece_size_.push_back(0), pinned_.push_back(0);
       piece_[i] = piece_[root];
       ++piece_size_[piece_[i]];
-      if (root == i) held_[i] = 1;
+      if (any_frozen && frozen[i]) held_[i] = 1, pinned_[piece_[i]] = 1;
     }
+    for (Index i = 0; i < n; ++i)  // one held node in each piece without a frozen one
+      if (used[i] && find(i) == i && !pinned_[piece_[i]]) held_[i] = 1;
     piece_mean_.assign(piece_size_.size(), Vec3::Zero());
     // L = sum_k A_k^T P A_k, P = I - 1 1^T / N, lower triangle; held rows and columns identity.
     std::vector<Eigen::Triplet<Scalar, int>> t;
@@ -129,7 +138,8 @@ class MaterialFusion {
     for (Index i = 0; i < n; ++i)
       if (piece_[i] >= 0 && piece_count_[piece_[i]] == 0) piece_mean_[piece_[i]] += dx_.row(i).transpose();
     for (size_t k = 0; k < piece_mean_.size(); ++k)
-      piece_mean_[k] /= static_cast<Scalar>(piece_count_[k] > 0 ? piece_count_[k] : piece_size_[k]);
+      piece_mean_[k] = pinned_[k] ? Vec3::Zero()
+                                  : Vec3(piece_mean_[k] / static_cast<Scalar>(piece_count_[k] > 0 ? piece_count_[k] : piece_size_[k]));
     for (Index i = 0; i < n; ++i)
       if (piece_[i] >= 0) rest.template segment<3>(3 * i) += dx_.row(i).transpose() - piece_mean_[piece_[i]];
   }
@@ -139,7 +149,8 @@ class MaterialFusion {
   using LDLT = Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
   std::unique_ptr<LDLT> ldlt_;
   Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs_, dx_;
-  std::vector<char> held_;          ///< one node per piece, and unused nodes
+  std::vector<char> held_;          ///< one node per piece without frozen nodes, frozen nodes, unused nodes
+  std::vector<char> pinned_;        ///< per piece: it holds frozen nodes (not moved as a whole)
   std::vector<Index> piece_;        ///< connected piece of each node (-1: used by no element)
   std::vector<Index> piece_size_;   ///< nodes per piece
   std::vector<Vec3> piece_mean_;    ///< scratch

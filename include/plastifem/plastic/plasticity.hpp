@@ -89,7 +89,8 @@ class Plasticity {
     synced_version_ = 0;
   }
 
-  /// The assembler's pattern changed (the dof map grew): the fusion is rebuilt when next needed.
+  /// The assembler's pattern changed (the dof map grew, a cut froze elements): the fusion is
+  /// rebuilt when next needed.
   void pattern_changed() { fusion_built_ = false; }
 
   /// New parameters mid-run: thresholds keep their hardening, shifted by the change of the
@@ -153,7 +154,13 @@ class Plasticity {
     for (Index e = 0; e < ne; ++e)
       if (result_[e] == FlowResult::Refused) off[e] = PlasticTable::switched_off, ++rep.switched_off;
     if (!fusion_built_) {
-      fusion_.build(mesh);
+      // The nodes of elements a cut enriched are held (fusion.hpp): those elements keep their
+      // rest shapes.
+      std::vector<char> frozen(mesh.num_nodes(), 0);
+      for (Index e = 0; e < ne; ++e)
+        if (table.off[e] == PlasticTable::cut)
+          for (Index i : mesh.element(e)) frozen[i] = 1;
+      fusion_.build(mesh, frozen);
       fusion_built_ = true;
     }
     // Fuse, check, and redo without the elements the fusion would degenerate.
@@ -215,7 +222,7 @@ class Plasticity {
       for (int a = 0; a < N && !m; ++a) m = node_moved_[c[a]];
       if (!m) continue;
       const ElementNodes<E> X = element_of(mesh, e, table.rest);
-      body.set_rest_shape(e, X);  // checked by the update that proposed it
+      body.set_rest_shape(e, X, /*checked=*/true);  // by the update that proposed it
       // The element's own flow gradients (copy-on-write, as the element data).
       const std::uint32_t old = grad_of_[e];
       if (grad_users_[old] == 1) {
@@ -251,10 +258,7 @@ class Plasticity {
     }
   }
   static ElementNodes<E> element_of(const Mesh<E>& mesh, Index e, const Vector& rest) {
-    ElementNodes<E> X;
-    const auto& c = mesh.element(e);
-    for (int a = 0; a < N; ++a) X.col(a) = rest.template segment<3>(3 * c[a]);
-    return X;
+    return mesh.element_nodes(e, rest);
   }
   /// Whether one of element e's rest nodes moved by more than `tol` from a to b. The shape
   /// check skips elements moved by less than 1e-4 of their shortest original edge: that changes

@@ -710,11 +710,12 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::freeze_enriched_plasticity() {
   if constexpr (plastic && enriched) {
-    using Table = typename PlasticParts<Plastic>::State;  // PlasticTable
+    using Table = typename PlasticParts<Plastic>::State;  // PlasticTable (not included by this light header)
     std::vector<std::uint8_t>& off = current_.plastic.off;
     for (size_t k = 0; k < body_.enrichment().elements().size(); ++k) {
       const Index e = body_.enrichment().element_of(k);
-      if (off[e] != Table::cut) off[e] = Table::cut, ++cut_report_.plastic_frozen;
+      if (off[e] == 0) ++cut_report_.plastic_frozen;  // (one the shape safeguard stopped is not counted)
+      off[e] = Table::cut;
     }
   }
 }
