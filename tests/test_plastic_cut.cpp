@@ -273,17 +273,21 @@ TEST_CASE("plastic cut: enriched elements stop flowing, the others go on, failur
     }
   CHECK(others_hardened);
   CHECK_FALSE(table == before_steps);
-  // Frozen elements keep their rest shapes (their nodes are held in the fusion), the others'
-  // move on.
+  // Frozen elements keep their rest shapes (their nodes are held in the fusion; the fused mesh
+  // is then moved as a whole to stay at the clamp, so they may translate: round-off, 1e-14 of
+  // the bar), the others' change.
   const Eigen::Matrix3Xd rest0 = Eigen::Map<const Eigen::Matrix3Xd>(before_steps.rest.data(), 3, mesh.num_nodes());
   const Eigen::Matrix3Xd rest1 = s.material_positions();
-  bool others_moved = false;
-  for (Index e = 0; e < ne; ++e)
-    for (Index i : mesh.element(e)) {
-      if (enriched[e]) CHECK((rest1.col(i) - rest0.col(i)).norm() == 0);
-      else others_moved = others_moved || (rest1.col(i) - rest0.col(i)).norm() > 0;
-    }
-  CHECK(others_moved);
+  Scalar frozen_change = 0, other_change = 0;
+  for (Index e = 0; e < ne; ++e) {
+    const ElementNodes<Hex8> a = mesh.element_nodes(e, Eigen::Map<const Vector>(rest0.data(), rest0.size()));
+    const ElementNodes<Hex8> b = mesh.element_nodes(e, Eigen::Map<const Vector>(rest1.data(), rest1.size()));
+    const Scalar change = ((b.colwise() - b.col(0)) - (a.colwise() - a.col(0))).cwiseAbs().maxCoeff();
+    (enriched[e] ? frozen_change : other_change) = std::max(enriched[e] ? frozen_change : other_change, change);
+  }
+  INFO("rest shape change over 10 flowing steps: frozen elements " << frozen_change << ", others " << other_change);
+  CHECK(frozen_change <= 1e-14 * 6);
+  CHECK(other_change > 1e-6);
 
   // The slit grown further into the bar (to y = 2.6, so to 3 of 4): the newly enriched elements
   // stop flowing too.

@@ -20,10 +20,11 @@
 // is held (dx = 0 there) for the solve, and then each piece is moved so that the mean dx of
 // its anchored nodes (those the solver holds in the world: a clamp) is zero, or of all its
 // nodes if none is: the material mesh stays where the body is held, and a symmetric flow
-// stays symmetric. Frozen nodes (those of elements a cut enriched, which stop flowing) are held
-// exactly: their elements keep their rest shapes, and a piece cut free is not moved by flow on
-// the other side of the cut (the two meet only at those nodes); a piece with a frozen node
-// needs no other held node and is not moved as a whole.
+// stays symmetric. Frozen nodes (those of elements a cut enriched, which stop flowing) are the
+// held nodes of their piece: with the move above (anchored mean) they only translate, so their
+// elements keep their rest shapes, and a piece cut free is at most translated, never distorted,
+// by flow on the other side of the cut (the two meet only at those nodes). (Two separate frozen
+// bands in one piece keep their distance: flow between two cuts does not move them apart.)
 //
 // Why not the plain one-pass average of the paper's formula, with each element left where it
 // was: a uniform plastic stretch of a bar then moves only its end nodes (every interior node
@@ -138,8 +139,7 @@ class MaterialFusion {
     for (Index i = 0; i < n; ++i)
       if (piece_[i] >= 0 && piece_count_[piece_[i]] == 0) piece_mean_[piece_[i]] += dx_.row(i).transpose();
     for (size_t k = 0; k < piece_mean_.size(); ++k)
-      piece_mean_[k] = pinned_[k] ? Vec3::Zero()
-                                  : Vec3(piece_mean_[k] / static_cast<Scalar>(piece_count_[k] > 0 ? piece_count_[k] : piece_size_[k]));
+      piece_mean_[k] /= static_cast<Scalar>(piece_count_[k] > 0 ? piece_count_[k] : piece_size_[k]);
     for (Index i = 0; i < n; ++i)
       if (piece_[i] >= 0) rest.template segment<3>(3 * i) += dx_.row(i).transpose() - piece_mean_[piece_[i]];
   }
@@ -150,7 +150,7 @@ class MaterialFusion {
   std::unique_ptr<LDLT> ldlt_;
   Eigen::Matrix<Scalar, Eigen::Dynamic, 3> rhs_, dx_;
   std::vector<char> held_;          ///< one node per piece without frozen nodes, frozen nodes, unused nodes
-  std::vector<char> pinned_;        ///< per piece: it holds frozen nodes (not moved as a whole)
+  std::vector<char> pinned_;        ///< per piece: it holds frozen nodes (no other held node needed)
   std::vector<Index> piece_;        ///< connected piece of each node (-1: used by no element)
   std::vector<Index> piece_size_;   ///< nodes per piece
   std::vector<Vec3> piece_mean_;    ///< scratch
