@@ -79,6 +79,18 @@ struct NeoHookeanEnergy {
     U = 0.5 * lambda * l * l, dU = lambda * l / J, ddU = lambda * (1 - l) / (J * J);
     return true;
   }
+  /// The second Piola-Kirchhoff stress of the whole energy (deviatoric + volumetric parts),
+  /// S = F^-1 P = mu (I - C^-1) + lambda ln J C^-1, in closed form: the plastic flow's stress
+  /// (plastic/flow.hpp) at a third of the cost of F^-1 P. false where J <= 0.
+  bool second_piola(const Mat3& F, Mat3& S) const {
+    const Scalar J = F.determinant();
+    if (!(J > 0)) return false;
+    const Mat3 C = F.transpose() * F;
+    const Mat3 Cinv = detail::cofactor(C) / (J * J);  // C symmetric: cof(C) = cof(C)^T; det C = J^2
+    S = (lambda * std::log(J) - mu) * Cinv;
+    S.diagonal().array() += mu;
+    return true;
+  }
 };
 
 struct NeoHookeanAbaqusEnergy {

@@ -113,7 +113,9 @@ inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
 template <class Elastic>
 bool deviatoric_flow_stress(const typename Elastic::Law& law, const Material& m, const Mat3& F, Mat3& dev) {
   Mat3 S;
-  if constexpr (is_hyperelastic_v<Elastic>) {
+  if constexpr (requires { law.energy.second_piola(F, S); }) {
+    if (!law.energy.second_piola(F, S)) return false;  // a closed form (NeoHookeanEnergy)
+  } else if constexpr (is_hyperelastic_v<Elastic>) {
     Mat3 P;
     if (!std::isfinite(law.evaluate(F, P, nullptr))) return false;
     const Scalar J = F.determinant();
@@ -277,23 +279,41 @@ class ElementFlow {
   static constexpr int NR = PerVertexRotation ? N : 1;
 
   /// The common case, cheaply: whether anything can flow at all. false only when no point is
-  /// above yield, no rotation is to be tested and no volume to restore: the small-strain family
-  /// without a kinematic centre, |s|^2 = 3/2 (2 mu k)^2 |dev E|^2 against tau^2, one product
-  /// x G and one F^T F per point. run() decides in every other case.
-  static bool may_flow(const Gradients& grad, const Material& m, const PlasticParams& prm, const ElementNodes<E>& x,
-                       Scalar beta, const ElementPlasticEntries& en) {
+  /// above yield, no rotation is to be tested, no kinematic centre and no volume to restore.
+  /// The small-strain family: |s|^2 = 3/2 (2 mu k)^2 |dev E|^2 against tau^2, one product x G
+  /// and one F^T F per point; the hyperelastic family: the stress run() would compute, at the
+  /// Gauss points (a point where it is undefined goes to run(), which counts it). run() decides
+  /// in every other case.
+  static bool may_flow(const Gradients& grad, const typename Elastic::Law& law, const Material& m,
+                       const PlasticParams& prm, const ElementNodes<E>& x, Scalar beta, const ElementPlasticEntries& en) {
+    if ((prm.rotation_active() && en.tau_R) || en.alpha) return true;
+    if (prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance) return true;
+    if (!prm.stretch_active()) return false;
     if constexpr (gauss) {
-      return true;
-    } else {
-      if ((prm.rotation_active() && en.tau_R) || en.alpha) return true;
-      if (prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance) return true;
-      if (!prm.stretch_active()) return false;
-      const Scalar c = 1.5 * (2 * m.mu() * prm.stress_scale) * (2 * m.mu() * prm.stress_scale);
       for (int k = 0; k < P; ++k) {
+        Mat3 dev;
+        if (!deviatoric_flow_stress<Elastic>(law, m, times<E>(x, grad.G[N + 1 + k]), dev)) return true;
+        if (von_mises_norm(prm.stress_scale * dev) > en.tau[k]) return true;
+      }
+      return false;
+    } else {
+      (void)law;
+      const Scalar c = 1.5 * (2 * m.mu() * prm.stress_scale) * (2 * m.mu() * prm.stress_scale);
+      auto s2 = [&](int k) {  // |s|^2 at flow point k
         const Mat3 F = times<E>(x, grad.G[k]);
         Mat3 Es = 0.5 * (F.transpose() * F);
         Es.diagonal().array() -= Es.trace() / 3;  // dev E (the -I/2 has no deviator)
-        if (c * Es.squaredNorm() > en.tau[k] * en.tau[k]) return true;
+        return c * Es.squaredNorm();
+      };
+      if constexpr (E::stiffness_degree == 0) {
+        // Constant-gradient element (Tet4): every blended gradient is the element's, so all
+        // its points see one stress; only their thresholds differ (hardening).
+        const Scalar s = s2(0);
+        for (int k = 0; k < P; ++k)
+          if (s > en.tau[k] * en.tau[k]) return true;
+      } else {
+        for (int k = 0; k < P; ++k)
+          if (s2(k) > en.tau[k] * en.tau[k]) return true;
       }
       return false;
     }
