@@ -114,11 +114,12 @@ using PointMat3 = std::array<PointArray<Q>, 9>;
 /// The rotations of Q deformation gradients at once (the quadrature points of one element),
 /// component-wise: F[r + 3c](q) = F_q(r, c), and R likewise. rotation_of's Newton-Schulz
 /// iteration runs in lockstep, each of the nine components of X an array over the points, so
-/// the arithmetic vectorises across points and their dependency chains overlap. A point that
-/// needs the scaled-Newton or SVD branch (stretch beyond about 12%, near-singular or inverted
-/// F) is left out of the lockstep and done by rotation_of. Agrees with rotation_of to
-/// round-off: a point whose iteration has converged takes the others' remaining steps, which
-/// leave X fixed to ~1e-16. Hex8 (8 points): 8 x 98 -> 190 ns in all at 5% strain.
+/// the arithmetic vectorises across points and their dependency chains overlap; points with
+/// stretches beyond about 12% first take rotation_of's scaled Newton steps, in lockstep too.
+/// A point that needs the SVD branch (near-singular or inverted F) is left out and done by
+/// rotation_of. Agrees with rotation_of to round-off: a point whose iteration has converged
+/// takes the others' remaining steps, which leave X fixed to ~1e-16. Hex8 (8 points): 8 x 98
+/// -> 190 ns in all at 5% strain.
 template <int Q>
 void rotations_of(const PointMat3<Q>& F, PointMat3<Q>& R) {
   // Plain lane loops over fixed-size arrays: the compiler turns each into a few SIMD
@@ -136,13 +137,54 @@ void rotations_of(const PointMat3<Q>& F, PointMat3<Q>& R) {
   for (int q = 0; q < Q; ++q) norm2[q] = (norm2[q] > 0 && std::isfinite(norm2[q])) ? std::sqrt(3 / norm2[q]) : 0.0;
   for (int i = 0; i < 9; ++i)
     for (int q = 0; q < Q; ++q) x[i][q] = F[i](q) * norm2[q];
-  bool any_alone = false;
+  bool any_alone = false, any_far = false;
+  bool far[Q];
   for (int q = 0; q < Q; ++q) {
     Scalar xq[9];
     for (int i = 0; i < 9; ++i) xq[i] = x[i][q];
     det[q] = detail::determinant(xq);
     gram[q] = detail::GramDeviation<Scalar>(xq).squared_norm();
-    alone[q] = !(det[q] > 5e-3 && gram[q] < 1.0 / 16);  // also true for NaN
+    alone[q] = !(det[q] > 5e-3);  // also true for NaN: the SVD branch
+    far[q] = !alone[q] && !(gram[q] < 1.0 / 16);
+    any_far = any_far || far[q];
+  }
+  // Stretches beyond ~12%: rotation_of's scaled Newton steps, in lockstep over the points that
+  // need them (soft tissue reaches such strains; one at a time they took a sixth of a
+  // corotational step on the bench's bar), the others left as they are.
+  for (int k = 0; k < 40 && any_far; ++k) {
+    Scalar c[9][Q], a[Q], b[Q];
+    for (int q = 0; q < Q; ++q) {  // cof X: columns x1 x x2, x2 x x0, x0 x x1
+      c[0][q] = x[4][q] * x[8][q] - x[5][q] * x[7][q];
+      c[1][q] = x[5][q] * x[6][q] - x[3][q] * x[8][q];
+      c[2][q] = x[3][q] * x[7][q] - x[4][q] * x[6][q];
+      c[3][q] = x[7][q] * x[2][q] - x[8][q] * x[1][q];
+      c[4][q] = x[8][q] * x[0][q] - x[6][q] * x[2][q];
+      c[5][q] = x[6][q] * x[1][q] - x[7][q] * x[0][q];
+      c[6][q] = x[1][q] * x[5][q] - x[2][q] * x[4][q];
+      c[7][q] = x[2][q] * x[3][q] - x[0][q] * x[5][q];
+      c[8][q] = x[0][q] * x[4][q] - x[1][q] * x[3][q];
+    }
+    for (int q = 0; q < Q; ++q) {
+      Scalar nc = 0, nx = 0;
+      for (int i = 0; i < 9; ++i) nc += c[i][q] * c[i][q], nx += x[i][q] * x[i][q];
+      const Scalar d = x[0][q] * c[0][q] + x[1][q] * c[1][q] + x[2][q] * c[2][q];
+      const Scalar g = std::sqrt(std::sqrt(nc) / (d * std::sqrt(nx)));
+      // X <- (g X + cof X / (g det X)) / 2 where far; X unchanged elsewhere
+      a[q] = far[q] ? 0.5 * g : 1.0;
+      b[q] = far[q] ? 0.5 / (g * d) : 0.0;
+    }
+    for (int i = 0; i < 9; ++i)
+      for (int q = 0; q < Q; ++q) x[i][q] = a[q] * x[i][q] + b[q] * c[i][q];
+    any_far = false;
+    for (int q = 0; q < Q; ++q) {
+      Scalar xq[9];
+      for (int i = 0; i < 9; ++i) xq[i] = x[i][q];
+      far[q] = far[q] && !(detail::GramDeviation<Scalar>(xq).squared_norm() < 1.0 / 16);
+      any_far = any_far || far[q];
+    }
+  }
+  for (int q = 0; q < Q; ++q) {
+    alone[q] = alone[q] || far[q];  // not brought near in 40 steps (not seen): one at a time
     any_alone = any_alone || alone[q];
   }
   if (any_alone)
