@@ -350,21 +350,17 @@ class ElementFlow {
     } else {
       (void)law;
       const Scalar c = 1.5 * (2 * m.mu() * prm.stress_scale) * (2 * m.mu() * prm.stress_scale);
-      auto s2 = [&](int k) {  // |s|^2 at flow point k
-        const Mat3 F = times<E>(x, grad.G[k]);
-        Mat3 Es = 0.5 * (F.transpose() * F);
-        Es.diagonal().array() -= Es.trace() / 3;  // dev E (the -I/2 has no deviator)
-        return c * Es.squaredNorm();
-      };
-      if constexpr (E::stiffness_degree == 0) {
-        // Constant-gradient element (Tet4): every blended gradient is the element's, so all
-        // its points see one stress; only their thresholds differ (hardening).
-        const Scalar s = s2(0);
-        for (int k = 0; k < P; ++k)
-          if (s > en.tau[k] * en.tau[k]) return true;
-      } else {
-        for (int k = 0; k < P; ++k)
-          if (s2(k) > en.tau[k] * en.tau[k]) return true;
+      Scalar s2 = 0;  // |s|^2 at flow point k
+      for (int k = 0; k < P; ++k) {
+        // A constant-gradient element (Tet4) has one stress at all its points (every blended
+        // gradient is the element's); only their thresholds differ (hardening).
+        if (k == 0 || E::stiffness_degree > 0) {
+          const Mat3 F = times<E>(x, grad.G[k]);
+          Mat3 Es = 0.5 * (F.transpose() * F);
+          Es.diagonal().array() -= Es.trace() / 3;  // dev E (the -I/2 has no deviator)
+          s2 = c * Es.squaredNorm();
+        }
+        if (s2 > en.tau[k] * en.tau[k]) return true;
       }
       return false;
     }

@@ -81,7 +81,6 @@ class Plasticity {
     result_.assign(ne, FlowResult::Unchanged);
     changed_.assign(ne, 0);
     reports_.assign(ne, PlasticReport{});
-    ran_.assign(ne, 0);
     out_ = table;
     rest_new_ = table.rest;
     fusion_built_ = false;
@@ -130,7 +129,7 @@ class Plasticity {
     body.assembler().for_each_element(
         [&](Index e) {
           result_[e] = FlowResult::Unchanged;
-          ran_[e] = 0;
+          reports_[e] = PlasticReport{};
           if (table.off[e]) return;
           const auto& c = mesh.element(e);
           ElementNodes<E> X, x;
@@ -138,15 +137,13 @@ class Plasticity {
           const auto en = entries(table, e);
           if (!Flow::may_flow(grads_[grad_of_[e]], *law_, body.material(), prm, x, table.volume[e], en)) return;
           for (int a = 0; a < N; ++a) X.col(a) = rest.template segment<3>(3 * c[a]);
-          ran_[e] = 1;
-          reports_[e] = PlasticReport{};
           result_[e] = Flow::run(points_, grads_[grad_of_[e]], *law_, body.material(), prm, dt, X, x, V0_[e],
                                  table.volume[e], q0_[e], en, entries(out_, e), z_[e], reports_[e]);
         },
         threads);
     bool any = false;
     for (Index e = 0; e < ne; ++e) {
-      if (ran_[e]) rep.add(reports_[e]);  // the others were below yield: nothing to report
+      rep.add(reports_[e]);
       changed_[e] = result_[e] == FlowResult::Changed;
       any = any || result_[e] != FlowResult::Unchanged;
     }
@@ -280,7 +277,7 @@ class Plasticity {
   std::vector<Scalar> V0_, h_, q0_;
   std::vector<ElementNodes<E>> z_;
   std::vector<FlowResult> result_;
-  std::vector<char> changed_, off_new_, node_moved_, ran_;
+  std::vector<char> changed_, off_new_, node_moved_;
   std::vector<PlasticReport> reports_;
   PlasticTable out_;  ///< the flowed entries of the changed elements, before the commit
   Vector rest_new_, synced_rest_, rest_u_;
