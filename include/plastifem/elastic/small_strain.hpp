@@ -127,9 +127,11 @@ template <FiniteElement E>
 QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
   QuadraturePoints<E> p;
   const auto q = E::template quadrature<E::stiffness_degree>();
+  const auto& dN = quadrature_gradients<E, E::stiffness_degree>();
   for (int k = 0; k < q.size; ++k) {
-    p.dv[k] = q.weights[k] * jacobian<E>(X0, q.points[k]).determinant();
-    p.G[k] = physical_gradient<E>(X0, q.points[k]);
+    Scalar det_J;
+    p.G[k] = physical_gradient_at<E>(X0, dN[k], &det_J);
+    p.dv[k] = q.weights[k] * det_J;
     p.dv_points(k) = p.dv[k];
     for (int a = 0; a < E::num_nodes; ++a)
       for (int j = 0; j < 3; ++j) p.GT(k, 3 * a + j) = p.G[k](a, j);

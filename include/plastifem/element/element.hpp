@@ -6,6 +6,7 @@
 #include <plastifem/element/tet4.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <concepts>
 #include <limits>
@@ -36,11 +37,10 @@ static_assert(FiniteElement<Tet4> && FiniteElement<Tet10> && FiniteElement<Hex8>
 template <FiniteElement E>
 using ElementNodes = Eigen::Matrix<Scalar, 3, E::num_nodes>;
 
-/// J = dx/dxi = X dN/dxi at the reference point xi. (Written as loops: Eigen's 3 x N by N x 3
-/// product costs ~0.3 s of compile time per element type, in every file.)
+/// J = dx/dxi = X dN for the reference gradient dN = dN/dxi at one point. (Written as loops:
+/// Eigen's 3 x N by N x 3 product costs ~0.3 s of compile time per element type, in every file.)
 template <FiniteElement E>
-Mat3 jacobian(const ElementNodes<E>& X, const Vec3& xi) {
-  const auto dN = E::gradient(xi);
+Mat3 jacobian_at(const ElementNodes<E>& X, const Eigen::Matrix<Scalar, E::num_nodes, 3>& dN) {
   Mat3 J;
   for (int j = 0; j < 3; ++j)
     for (int i = 0; i < 3; ++i) {
@@ -51,11 +51,53 @@ Mat3 jacobian(const ElementNodes<E>& X, const Vec3& xi) {
   return J;
 }
 
-/// Shape gradients with respect to physical coordinates: dN/dx = dN/dxi J^{-1}.
+/// J = dx/dxi at the reference point xi.
+template <FiniteElement E>
+Mat3 jacobian(const ElementNodes<E>& X, const Vec3& xi) {
+  return jacobian_at<E>(X, E::gradient(xi));
+}
+
+/// Shape gradients with respect to physical coordinates, dN/dx = dN/dxi J^{-1}, for the
+/// reference gradient dN at one point; `det_J`, if given, gets det J.
+template <FiniteElement E>
+Eigen::Matrix<Scalar, E::num_nodes, 3> physical_gradient_at(const ElementNodes<E>& X,
+                                                           const Eigen::Matrix<Scalar, E::num_nodes, 3>& dN,
+                                                           Scalar* det_J = nullptr) {
+  // Eigen's products for G and jacobian_at's loops for det J: the round-off of every earlier
+  // version (extreme-state tests follow Newton paths that round-off can change).
+  if (det_J) *det_J = jacobian_at<E>(X, dN).determinant();
+  return dN * (X * dN).inverse();
+}
+
+/// dN/dx at the reference point xi.
 template <FiniteElement E>
 Eigen::Matrix<Scalar, E::num_nodes, 3> physical_gradient(const ElementNodes<E>& X, const Vec3& xi) {
-  const auto dN = E::gradient(xi);
-  return dN * (X * dN).inverse();
+  return physical_gradient_at<E>(X, E::gradient(xi));
+}
+
+/// dN/dxi at the points of the quadrature rule of `Degree` and (corner_gradients) at the
+/// vertices, evaluated once per element type: the rest-shape updates of plasticity recompute
+/// Jacobians at these points for every flowing element in every step.
+template <FiniteElement E, int Degree>
+const auto& quadrature_gradients() {
+  using Rule = decltype(E::template quadrature<Degree>());
+  static const auto table = [] {
+    const auto q = E::template quadrature<Degree>();
+    std::array<Eigen::Matrix<Scalar, E::num_nodes, 3>, Rule::size> g;
+    for (int k = 0; k < q.size; ++k) g[k] = E::gradient(q.points[k]);
+    return g;
+  }();
+  return table;
+}
+template <FiniteElement E>
+const auto& corner_gradients() {
+  static const auto table = [] {
+    const auto Xref = E::reference_nodes();
+    std::array<Eigen::Matrix<Scalar, E::num_nodes, 3>, E::num_vertices> g;
+    for (int a = 0; a < E::num_vertices; ++a) g[a] = E::gradient(Xref.col(a));
+    return g;
+  }();
+  return table;
 }
 
 /// What the shape check of one element found: the smallest scaled Jacobian determinant over
@@ -88,14 +130,14 @@ ShapeCheck check_shape(const ElementNodes<E>& X) {
   for (const auto& ed : E::edges) len = std::max(len, (Y.col(ed[0]) - Y.col(ed[1])).norm());
   Y /= len;  // longest edge exactly of unit length
   const Scalar scale = E::reference_volume;  // det J of the reference element mapped to itself is 1
-  const auto Xref = E::reference_nodes();
-  const auto q = E::template quadrature<E::mass_degree>();
-  auto check = [&](const Vec3& xi, bool corner, int k) {
-    const Scalar s = jacobian<E>(Y, xi).determinant() * scale;
+  const auto& corners = corner_gradients<E>();
+  const auto& points = quadrature_gradients<E, E::mass_degree>();
+  auto check = [&](const auto& dN, bool corner, int k) {
+    const Scalar s = jacobian_at<E>(Y, dN).determinant() * scale;
     if (!(s >= r.min_scaled_jacobian)) r = {std::isnan(s) ? std::numeric_limits<Scalar>::quiet_NaN() : s, corner, k};
   };
-  for (int a = 0; a < E::num_vertices; ++a) check(Xref.col(a), true, a);
-  for (int k = 0; k < q.size; ++k) check(q.points[k], false, k);
+  for (int a = 0; a < E::num_vertices; ++a) check(corners[a], true, a);
+  for (size_t k = 0; k < points.size(); ++k) check(points[k], false, static_cast<int>(k));
   return r;
 }
 
@@ -104,8 +146,9 @@ ShapeCheck check_shape(const ElementNodes<E>& X) {
 template <FiniteElement E>
 Scalar element_volume(const ElementNodes<E>& X) {
   const auto q = E::template quadrature<E::mass_degree>();
+  const auto& dN = quadrature_gradients<E, E::mass_degree>();
   Scalar v = 0;
-  for (int k = 0; k < q.size; ++k) v += q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
+  for (int k = 0; k < q.size; ++k) v += q.weights[k] * jacobian_at<E>(X, dN[k]).determinant();
   return v;
 }
 

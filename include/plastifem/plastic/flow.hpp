@@ -139,9 +139,13 @@ inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
   const Scalar l3 = q - p * (c + std::sqrt(Scalar(3)) * s);  // the smallest, 2 cos(phi + 2 pi / 3)
   const Scalar l2 = 3 * q - l1 - l3;
   if (!(l3 > 0) || l1 > 16 * l3) return isochoric_stretch_power_eigen(C, gamma, Sp);
-  const Scalar x1 = std::log(l1), x2 = std::log(l2), x3 = std::log(l3);
-  const Scalar g = gamma / 2, m = (x1 + x2 + x3) / 3;
-  const Scalar f1 = std::exp(g * (x1 - m)), f2 = std::exp(g * (x2 - m)), f3 = std::exp(g * (x3 - m));
+  // f_i = (l_i^3 / det C)^(gamma/6), det C = l1 l2 l3 from C itself; f1 f2 f3 = 1 gives f2
+  // (two logarithms and two exponentials instead of three each: libm was half of this function).
+  const Scalar g = gamma / 2, detC = C.determinant();
+  if (!(detC > 0)) return isochoric_stretch_power_eigen(C, gamma, Sp);
+  const Scalar f1 = std::exp(g / 3 * std::log(l1 * l1 * (l1 / detC)));
+  const Scalar f3 = std::exp(g / 3 * std::log(l3 * l3 * (l3 / detC)));
+  const Scalar f2 = 1 / (f1 * f3);
   auto divided = [g](Scalar la, Scalar fa, Scalar lb, Scalar fb) {  // f[a, b]
     const Scalar d = lb - la;
     if (std::abs(d) > 1e-3 * la) return (fb - fa) / d;  // loses at most 3 of 16 digits
@@ -247,10 +251,10 @@ struct FlowGradients {
 
   FlowGradients() = default;
   FlowGradients(const FlowPoints<E, Gauss>& pts, const ElementNodes<E>& X) {
-    for (int a = 0; a <= N; ++a) G[a] = pts.dN_nodes[a] * (X * pts.dN_nodes[a]).inverse();
+    for (int a = 0; a <= N; ++a) G[a] = physical_gradient_at<E>(X, pts.dN_nodes[a]);
     for (int a = 0; a < N; ++a) G[a] = 0.5 * (G[a] + G[N]);
     if constexpr (Gauss)
-      for (int g = 0; g < Q; ++g) G[N + 1 + g] = pts.dN_gauss[g] * (X * pts.dN_gauss[g]).inverse();
+      for (int g = 0; g < Q; ++g) G[N + 1 + g] = physical_gradient_at<E>(X, pts.dN_gauss[g]);
   }
 };
 
@@ -274,8 +278,9 @@ template <FiniteElement E>
 Scalar rest_volume(const ElementNodes<E>& X) {
   constexpr int degree = E::num_vertices == 8 ? 2 : 3 * (E::order - 1);
   const auto q = E::template quadrature<degree>();
+  const auto& dN = quadrature_gradients<E, degree>();
   Scalar v = 0;
-  for (int k = 0; k < q.size; ++k) v += q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
+  for (int k = 0; k < q.size; ++k) v += q.weights[k] * jacobian_at<E>(X, dN[k]).determinant();
   return v;
 }
 
@@ -286,9 +291,9 @@ Scalar corner_quality(const ElementNodes<E>& X) {
   Scalar h = 0;
   for (const auto& ed : E::edges) h = std::max(h, (X.col(ed[0]) - X.col(ed[1])).squaredNorm());
   if (!(h > 0) || !std::isfinite(h)) return std::numeric_limits<Scalar>::quiet_NaN();
-  const auto Xref = E::reference_nodes();
+  const auto& dN = corner_gradients<E>();
   Scalar q = std::numeric_limits<Scalar>::max();
-  for (int a = 0; a < E::num_vertices; ++a) q = std::min(q, jacobian<E>(X, Xref.col(a)).determinant());
+  for (int a = 0; a < E::num_vertices; ++a) q = std::min(q, jacobian_at<E>(X, dN[a]).determinant());
   return q / (h * std::sqrt(h)) * E::reference_volume;
 }
 
