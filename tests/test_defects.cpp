@@ -473,9 +473,11 @@ TEST_CASE("defect 8: statics with CG on a body held by one node never returns a 
     const OneNode cor = one_node_cg<Corotational>(mesh, {{"xmax", Vec3(0, 0, -0.01)}});
     fmt::print("Corotational: {}\n", cor.message.substr(0, 140));
     // The same singular tangent at rest, so the same outcome (a correct answer would be the bar
-    // hanging from node 0, which Newton from rest cannot reach through a singular K).
+    // hanging from node 0, which Newton from rest cannot reach through a singular K): CG's
+    // breakdown, or, where round-off on the null space leaves p.Ap > 0, Newton's failure to
+    // converge, through the load cuts. Either way a SolverError and the state at rest.
     CHECK(cor.threw);
-    CHECK(contains(cor.message, "CG"));
+    CHECK((contains(cor.message, "CG") || contains(cor.message, "did not converge")));
     CHECK(cor.u.isZero(0));
   }
   SECTION("a self-equilibrated load: CG converges to the true solution") {
