@@ -326,12 +326,21 @@ enum class Undamped { Trapezoidal, Dissipative };
 /// lets go. From the release on, two copies move freely for 0.2 s at dt = 1e-4: one without
 /// damping (Newmark trapezoidal, or gamma = 0.6, beta = 0.3025, which dissipates numerically),
 /// one with Rayleigh damping alpha = 2, beta = 1e-3 (trapezoidal).
+/// `damped_pull`: the pull with that Rayleigh damping too (the free copies as above);
+/// `jitter`: every node moved by up to that much (a round-off-sized change of the input).
 /// Returns the undamped copy's largest energy over its energy at release.
 template <class M>
-Scalar grasp_far(bool single_node, Undamped undamped) {
-  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+Scalar grasp_far(bool single_node, Undamped undamped, bool damped_pull = false, Scalar jitter = 0) {
+  const Mesh<Hex8> bar = bar_mesh<Hex8>(4, 1, 1);
+  Eigen::Matrix3Xd X = bar.nodes();
+  for (Index i = 0; i < X.cols(); ++i)
+    X.col(i) += jitter * Vec3(std::sin(7.1 * i), std::cos(3.3 * i), std::sin(1.7 * i));
+  Mesh<Hex8> mesh(X, bar.elements());
+  for (const char* set : {"xmin", "xmax"}) mesh.add_node_set(set, bar.node_set(set));
   const auto t0 = std::chrono::steady_clock::now();
-  Solver<Hex8, M> s(mesh, soft);
+  SolverSettings pull_settings;
+  if (damped_pull) pull_settings.rayleigh_mass = 2, pull_settings.rayleigh_stiffness = 1e-3;
+  Solver<Hex8, M> s(mesh, soft, pull_settings);
   s.fix(mesh.node_set("xmin"));
   std::vector<Index> nodes = mesh.node_set("xmax");
   if (single_node) nodes.resize(1);
@@ -358,6 +367,8 @@ Scalar grasp_far(bool single_node, Undamped undamped) {
     dissipative.newmark.gamma = 0.6;
     dissipative.newmark.beta = 0.25 * (0.5 + 0.6) * (0.5 + 0.6);
     s.set_settings(dissipative);
+  } else if (damped_pull) {
+    s.set_settings(SolverSettings{});
   }
 
   auto energy = [](const auto& x) { return x.kinetic_energy() + x.strain_energy(); };
@@ -379,10 +390,11 @@ Scalar grasp_far(bool single_node, Undamped undamped) {
       damped_previous = e;
     }
   }
-  fmt::print("grasp 10 L {:12} {:11}: pull {} steps ({} sub-steps), {} failed, reach {:.1f}; energy at release {:.4g}; "
+  fmt::print("grasp 10 L {:12} {:11}{}: pull {} steps ({} sub-steps), {} failed, reach {:.1f}; energy at release {:.4g}; "
              "undamped ({}) {} steps, {} failed, max {:.4g} E0; damped {} steps, {} failed, max {:.4f} E0, largest "
              "rise in a step {:.1e} E0, end {:.3f} E0; {:.0f} ms\n",
-             M::name, single_node ? "corner node" : "end face", pull.steps, pull.substeps, pull.failures, reach, E0,
+             M::name, single_node ? "corner node" : "end face",
+             damped_pull ? fmt::format(" (damped pull, jitter {:.0e})", jitter) : std::string(), pull.steps, pull.substeps, pull.failures, reach, E0,
              undamped == Undamped::Trapezoidal ? "trapezoidal" : "gamma 0.6", free_undamped.steps,
              free_undamped.failures, undamped_max / E0, free_damped.steps, free_damped.failures, damped_max / E0,
              damped_rise, damped_previous / E0, ms_since(t0));
@@ -675,13 +687,22 @@ TEST_CASE("extremes 5: a grasper pulls 10 bar lengths away and lets go", "[extre
   // for Corotational with the trapezoidal rule; the dissipative gamma = 0.6 only loses).
   CHECK(grasp_far<Corotational>(false, Undamped::Trapezoidal) <= 1.05);
   CHECK(grasp_far<Corotational>(true, Undamped::Trapezoidal) <= 1.05);
-  CHECK(grasp_far<NeoHookean>(false, Undamped::Dissipative) <= 1.05);
+  // NeoHookean: the undamped pull of this 4-element bar to 10 lengths is chaotic: moving the
+  // nodes by 1e-15 to 1e-8 made it fail at 88-99.8% of the way (det F -> 0 at a Gauss point,
+  // energy 4e7-3e8 against the 2.6e5 of the unperturbed mesh, whose pull passes by luck, and
+  // the damped release then gained 3-22 times its energy). With the Rayleigh damping of the
+  // damped copy during the pull as well (tissue is damped), every one of those meshes reaches
+  // 40 with the same energy (2.372e5 to 4 digits) and a stable release: the pull is damped
+  // here, and repeated on a mesh moved by 1e-13 to assert that the outcome no longer hinges on
+  // round-off.
+  CHECK(grasp_far<NeoHookean>(false, Undamped::Dissipative, true) <= 1.05);
+  CHECK(grasp_far<NeoHookean>(false, Undamped::Dissipative, true, 1e-13) <= 1.05);
   // NeoHookean with the undamped trapezoidal rule: once an element of the rebounding bar nearly
   // collapses (ln J barrier), each step gains energy, whatever the step (dt = 1e-4, 3e-5,
   // 1e-5: 8.6e3, 5.5e3, 1.2e4 E0 after 0.16-0.19 s; the force is the energy's gradient to 1e-9
   // there, so this is the integrator, not the model). Only the transactions are asserted; the
   // figure is printed (see the report).
-  grasp_far<NeoHookean>(false, Undamped::Trapezoidal);
+  grasp_far<NeoHookean>(false, Undamped::Trapezoidal, true);
 }
 
 TEST_CASE("extremes 6: twist of 4 pi and back, statics and dynamics", "[extremes][twist]") {
