@@ -48,6 +48,13 @@ struct NewtonOptions {
   /// successors are held to; a body held by one node under CG took |r| = 4.6e6 against
   /// |f_ext| = 0.02 as converged, relative to an intermediate iterate's |f_int| ~ 6e13).
   bool running_max_scale = true;
+  /// With the running maximum, how far above the first iterate's scale an iterate may raise it.
+  /// A garbage iterate far from the solution has huge inertia and internal forces that cancel
+  /// each other: measured on a nearly incompressible StableNeoHookean bar stepped at dt = 1
+  /// (its nodes moved by 1e-13), Newton "converged" to |u| = 4e7 on a bar 10 long, relative to
+  /// its own forces. Capped, such an iterate must meet the tolerance of the step's own scale,
+  /// fails, and the step is cut.
+  Scalar max_scale_growth = 1e3;
   /// Also converged when |r| <= this: the round-off level of the force evaluation
   /// (System::rest_force_roundoff), for a body at rest under no load, whose force scale is that
   /// round-off itself (an unloaded Hex8 bar failed its fourth step: |r| = 1.9e-11, "relative 0.58").
@@ -144,10 +151,13 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
   Scalar rnorm = p.residual(u, true);
   bool tangent_at_u = true, stale = false;
   Scalar first_scale = 0;
+  auto capped = [&](Scalar scale) {
+    return o.running_max_scale ? std::min(scale, o.max_scale_growth * first_scale) : scale;
+  };
   for (int it = 0;; ++it) {
     if (!std::isfinite(rnorm)) p.invalid(u);
     if (it == 0) first_scale = p.scale();
-    res.scale = std::max({o.running_max_scale ? res.scale : first_scale, p.scale(), Scalar(1e-30)});
+    res.scale = std::max({o.running_max_scale ? res.scale : first_scale, capped(p.scale()), Scalar(1e-30)});
     res.residual = rnorm;
     res.relative_residual = rnorm / res.scale;
     if (it >= o.min_iterations && (rnorm <= o.tolerance * res.scale || rnorm <= o.absolute_tolerance)) {
@@ -178,7 +188,7 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
       tangent_at_u = false;
       // The test above decides; a linear model is then solved again from there, unless the
       // correction no longer changes u (the residual is at its round-off floor).
-      if (o.stagnation && !(rnorm <= o.tolerance * std::max(res.scale, p.scale()) || rnorm <= o.absolute_tolerance) &&
+      if (o.stagnation && !(rnorm <= o.tolerance * std::max(res.scale, capped(p.scale())) || rnorm <= o.absolute_tolerance) &&
           norm(du) <= o.increment_tolerance * (norm(u) + o.length) && rnorm <= std::sqrt(o.tolerance) * res.scale) {
         res.residual = rnorm;
         res.relative_residual = rnorm / res.scale;
@@ -208,7 +218,7 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
     }
     // Stagnation: the increment no longer changes u and |r| is near the tolerance. A residual
     // that already meets the tolerance goes round the loop instead, to be reported converged.
-    const bool meets_tolerance = rnorm <= o.tolerance * std::max(res.scale, p.scale()) || rnorm <= o.absolute_tolerance;
+    const bool meets_tolerance = rnorm <= o.tolerance * std::max(res.scale, capped(p.scale())) || rnorm <= o.absolute_tolerance;
     if (o.stagnation && !meets_tolerance && s * norm(du) <= o.increment_tolerance * (norm(u) + o.length) &&
         rnorm <= std::sqrt(o.tolerance) * res.scale) {
       res.residual = rnorm;
