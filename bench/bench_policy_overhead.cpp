@@ -102,6 +102,17 @@ Row measure(const std::string& scene, int threads, int steps) {
           quantile(ratio, 0.75), diff};
 }
 
+/// The plastic rows' settings: accurate mode, CG 1e-6, `threads` (OpenMP's too).
+SolverSettings plastic_settings(int threads) {
+#ifdef _OPENMP
+  omp_set_num_threads(threads);
+#endif
+  SolverSettings st;
+  st.linear = {LinearSolverKind::ConjugateGradient, 1e-6, 1000};
+  st.threads = threads;
+  return st;
+}
+
 /// Steps of a plastic Solver and an elastic one alternating (`warmup` untimed first), timed:
 /// a row with the medians and the per-step ratio's quartiles; `yielded` gets the flow points
 /// that yielded in the timed steps.
@@ -138,12 +149,7 @@ Row measure_plastic(const std::string& scene, int threads, int steps, bool flowi
   const auto [nx, ny, nz] = bar_scene_cells(scene);
   const auto mesh = bar_mesh<E>(nx, ny, nz);
   const Material material{3000, 0.45, 1.0};
-#ifdef _OPENMP
-  omp_set_num_threads(threads);
-#endif
-  SolverSettings st;
-  st.linear = {LinearSolverKind::ConjugateGradient, 1e-6, 1000};
-  st.threads = threads;
+  SolverSettings st = plastic_settings(threads);
   PlasticParams pp;
   pp.yield_stress = flowing ? 0 : 1e4;
   pp.flow_rate = 0.4;
@@ -176,12 +182,7 @@ Row measure_released(const std::string& scene, int threads, int steps, double& f
   const auto [nx, ny, nz] = bar_scene_cells(scene);
   const auto mesh = bar_mesh<E>(BoxSpec{nx, ny, nz, Vec3(10, 3, 3)});
   const Material material{3000, 0.45, 1.0};
-#ifdef _OPENMP
-  omp_set_num_threads(threads);
-#endif
-  SolverSettings st;
-  st.linear = {LinearSolverKind::ConjugateGradient, 1e-6, 1000};
-  st.threads = threads;
+  SolverSettings st = plastic_settings(threads);
   st.rayleigh_mass = 1.0;
   PlasticParams pp;
   pp.yield_stress = 1000;
