@@ -381,11 +381,14 @@ class ElementFlow {
     const bool stretch = prm.stretch_active(), rotate = prm.rotation_active() && en.tau_R;
     const bool restore = prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance;
     const bool need_vertices = rotate || !gauss;
+    // A constant-gradient element (Tet4): its blended gradients are its centre's bit for bit
+    // (FlowGradients), so every Fbar_a is F_o, and the per-vertex work is done once.
+    constexpr bool constant_gradient = E::stiffness_degree == 0;
     std::array<Mat3, N> Fbar;
     Mat3 F_o = Mat3::Identity();
     if (need_vertices) {
       F_o = times<E>(x, grad.G[N]);
-      for (int a = 0; a < N; ++a) Fbar[a] = times<E>(x, grad.G[a]);
+      for (int a = 0; a < N; ++a) Fbar[a] = constant_gradient ? F_o : times<E>(x, grad.G[a]);
     }
 
     // --- plastic stretch at the flow points (eq. 4) and hardening
@@ -397,21 +400,32 @@ class ElementFlow {
     // Below these a stress or a distortion is the round-off of F (a rigid motion), not a flow:
     // a strain of 1e-12, a rotation of 1e-9 rad (polar decompositions are accurate to ~1e-15).
     const Scalar stress_floor = 1e-12 * prm.stress_scale * 2 * m.mu(), rotation_floor = 1e-9;
+    // Vertex flow on a constant-gradient element: one stress, and where the points' gamma agree
+    // (unless their hardening histories differ) one plastic stretch.
+    constexpr bool one_gradient = !gauss && constant_gradient;
     if (stretch) {
+      bool defined = true;  // the stress at the last point that computed one
       for (int k = 0; k < P; ++k) {
         const Mat3 F = gauss ? times<E>(x, grad.G[N + 1 + k]) : Fbar[k];
-        Mat3 dev;
-        if (!deviatoric_flow_stress<Elastic>(law, m, F, dev)) {
+        if (!one_gradient || k == 0) {
+          Mat3 dev;
+          defined = deviatoric_flow_stress<Elastic>(law, m, F, dev);
+          if (defined) dev_scaled[k] = prm.stress_scale * dev;
+        } else {
+          dev_scaled[k] = dev_scaled[0];
+        }
+        if (!defined) {
           ++rep.undefined_points;
           continue;
         }
-        dev_scaled[k] = prm.stress_scale * dev;
         const Mat3 s = en.alpha ? Mat3(dev_scaled[k] - unpack(en.alpha + 6 * k)) : dev_scaled[k];
         const Scalar vm = von_mises_norm(s);
         if (!(vm > en.tau[k]) || vm <= stress_floor) continue;
         Scalar g = prm.flow_rate * dt * (vm - en.tau[k]) / vm;
         if (g >= 1) g = 1, ++rep.gamma_clamped;
-        if (!isochoric_stretch_power(F, g, Sp_point[k])) {
+        if (one_gradient && k > 0 && g == gamma[0]) {
+          Sp_point[k] = Sp_point[0];  // the same F and gamma
+        } else if (!isochoric_stretch_power(F, g, Sp_point[k])) {
           ++rep.undefined_points;
           continue;
         }
@@ -435,6 +449,10 @@ class ElementFlow {
       std::array<Mat3, N> Rbar;
       std::array<Scalar, N> phi;
       for (int a = 0; a < N; ++a) {
+        if (constant_gradient && a > 0) {
+          Rbar[a] = Rbar[0], phi[a] = phi[0];
+          continue;
+        }
         Rbar[a] = rotation_of(Fbar[a]);
         phi[a] = geodesic_distance(Rbar[a], R_o);
       }
