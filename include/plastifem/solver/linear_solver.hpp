@@ -20,6 +20,7 @@
 #include <plastifem/core/vector_ops.hpp>
 
 #include <Eigen/SparseCholesky>
+#include <cmath>
 
 #ifdef PLASTIFEM_HAS_CHOLMOD
 #include <Eigen/CholmodSupport>
@@ -179,33 +180,62 @@ class BasicLinearSolver {
 
   LinearSolveReport solve_cg(const BlockSymmetricMatrix& A, const Vector& b, Vector& x, Scalar tolerance);
 
-  static constexpr Index max_group_dofs = 12;
-  using GroupMatrix = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic, 0, max_group_dofs, max_group_dofs>;
-  using GroupVector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1, 0, max_group_dofs, 1>;
+  static constexpr int max_group_dofs = 12;
+
+  /// Inverts the symmetric positive definite k x k matrix `a` (column-major, k <= max_group_dofs)
+  /// in place: a = L L^T (Cholesky), a^-1 = L^-T L^-1. False, `a` undefined, where a pivot is not
+  /// positive (or not finite). Plain loops on purpose: Eigen's LLT of a dynamic matrix pulls its
+  /// blocked GEMM and triangular-solve kernels into every translation unit with a Solver (2 s of
+  /// CPU and 100 MB of the compiler's memory), for matrices of at most 12 x 12.
+  static bool invert_spd(Scalar* a, int k) {
+    Scalar l[max_group_dofs][max_group_dofs] = {};  // L, then L^-1, row-major, lower
+    for (int j = 0; j < k; ++j) {
+      Scalar d = a[j + k * j];
+      for (int m = 0; m < j; ++m) d -= l[j][m] * l[j][m];
+      if (!(d > 0) || !std::isfinite(d)) return false;
+      l[j][j] = std::sqrt(d);
+      for (int i = j + 1; i < k; ++i) {
+        Scalar s = a[i + k * j];
+        for (int m = 0; m < j; ++m) s -= l[i][m] * l[j][m];
+        l[i][j] = s / l[j][j];
+      }
+    }
+    for (int j = 0; j < k; ++j) {  // L^-1 column by column, by forward substitution (in place)
+      l[j][j] = 1 / l[j][j];
+      for (int i = j + 1; i < k; ++i) {
+        Scalar s = 0;
+        for (int m = j; m < i; ++m) s -= l[i][m] * l[m][j];
+        l[i][j] = s / l[i][i];
+      }
+    }
+    for (int j = 0; j < k; ++j)  // (L^-T L^-1)_ij = sum_m>=max(i,j) (L^-1)_mi (L^-1)_mj
+      for (int i = j; i < k; ++i) {
+        Scalar s = 0;
+        for (int m = i; m < k; ++m) s += l[m][i] * l[m][j];
+        a[i + k * j] = a[j + k * i] = s;
+      }
+    return true;
+  }
 
   /// The inverses of the groups' diagonal blocks of A (set_coupled_rows).
   void factorise_groups(const BlockSymmetricMatrix& A) {
     const BlockPattern& p = A.pattern();
     for (size_t g = 0; g < groups_.size(); ++g) {
       const auto& rows = groups_[g];
-      const Index k = 3 * static_cast<Index>(rows.size());
+      const int k = 3 * static_cast<int>(rows.size());
       group_valid_[g] = 0;
       if (k > max_group_dofs) continue;
-      GroupMatrix S(k, k);
+      Scalar* S = group_inverse_.data() + group_offset_[g];  // k x k, column-major
       for (size_t a = 0; a < rows.size(); ++a)
         for (size_t c = 0; c < rows.size(); ++c) {
           const bool lower = rows[a] >= rows[c];
           const int blk = lower ? p.block(rows[a], rows[c]) : p.block(rows[c], rows[a]);
           for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j)
-              S(3 * a + i, 3 * c + j) =
+              S[static_cast<int>(3 * a) + i + k * (static_cast<int>(3 * c) + j)] =
                   blk < 0 ? 0.0 : A.values()[9 * static_cast<size_t>(blk) + (lower ? 3 * i + j : 3 * j + i)];
         }
-      const Eigen::LLT<GroupMatrix> llt(S);
-      if (llt.info() != Eigen::Success) continue;
-      Eigen::Map<Eigen::MatrixXd>(group_inverse_.data() + group_offset_[g], k, k) =
-          llt.solve(GroupMatrix::Identity(k, k));
-      group_valid_[g] = 1;
+      group_valid_[g] = invert_spd(S, k);
     }
   }
   /// z = P r on the groups' rows (the Jacobi z is there already); returns the change of r.z.
@@ -214,14 +244,17 @@ class BasicLinearSolver {
     for (size_t g = 0; g < groups_.size(); ++g) {
       if (!group_valid_[g]) continue;
       const auto& rows = groups_[g];
-      const Index k = 3 * static_cast<Index>(rows.size());
-      GroupVector rg(k);
-      for (size_t a = 0; a < rows.size(); ++a) rg.template segment<3>(3 * a) = r.template segment<3>(3 * rows[a]);
-      const GroupVector zg =
-          Eigen::Map<const Eigen::MatrixXd>(group_inverse_.data() + group_offset_[g], k, k) * rg;
-      for (size_t a = 0; a < rows.size(); ++a) {
-        change += rg.template segment<3>(3 * a).dot(zg.template segment<3>(3 * a) - z.template segment<3>(3 * rows[a]));
-        z.template segment<3>(3 * rows[a]) = zg.template segment<3>(3 * a);
+      const int k = 3 * static_cast<int>(rows.size());
+      const Scalar* inverse = group_inverse_.data() + group_offset_[g];  // k x k, symmetric
+      Scalar rg[max_group_dofs];
+      for (size_t a = 0; a < rows.size(); ++a)
+        for (int i = 0; i < 3; ++i) rg[3 * a + i] = r[3 * rows[a] + i];
+      for (int i = 0; i < k; ++i) {
+        Scalar zi = 0;  // row i of the inverse is its column i
+        for (int j = 0; j < k; ++j) zi += inverse[j + k * i] * rg[j];
+        Scalar& zr = z[3 * rows[static_cast<size_t>(i / 3)] + i % 3];
+        change += rg[i] * (zi - zr);
+        zr = zi;
       }
     }
     return change;
