@@ -32,6 +32,7 @@
 // found while writing them (stiff bodies refused by the direct solvers, converged steps reported
 // as stagnated) are fixed; their regression tests are at the end of the file.
 #include "catch.hpp"
+#include "moved_mesh.hpp"
 
 #include <plastifem/plastifem.hpp>
 
@@ -331,12 +332,7 @@ enum class Undamped { Trapezoidal, Dissipative };
 /// Returns the undamped copy's largest energy over its energy at release.
 template <class M>
 Scalar grasp_far(bool single_node, Undamped undamped, bool damped_pull = false, Scalar jitter = 0) {
-  const Mesh<Hex8> bar = bar_mesh<Hex8>(4, 1, 1);
-  Eigen::Matrix3Xd X = bar.nodes();
-  for (Index i = 0; i < X.cols(); ++i)
-    X.col(i) += jitter * Vec3(std::sin(7.1 * i), std::cos(3.3 * i), std::sin(1.7 * i));
-  Mesh<Hex8> mesh(X, bar.elements());
-  for (const char* set : {"xmin", "xmax"}) mesh.add_node_set(set, bar.node_set(set));
+  const Mesh<Hex8> mesh = moved_mesh(bar_mesh<Hex8>(4, 1, 1), jitter);
   const auto t0 = std::chrono::steady_clock::now();
   SolverSettings pull_settings;
   if (damped_pull) pull_settings.rayleigh_mass = 2, pull_settings.rayleigh_stiffness = 1e-3;

@@ -6,6 +6,7 @@
 // against the continuum answer (Richardson extrapolation with the clamp singularity's order).
 #include "catch.hpp"
 #include "eigenvalues.hpp"
+#include "moved_mesh.hpp"
 
 #include <plastifem/plastifem.hpp>
 
@@ -416,12 +417,7 @@ TEMPLATE_TEST_CASE("nearly incompressible (nu = 0.499) bending: no NaN, bounded 
   // to |u| = 4e7 on the moved bar (StableNeoHookean), relative to the garbage iterate's own
   // inertia and internal forces (NewtonOptions::max_scale_growth now bounds that scale).
   for (const Scalar jitter : {0.0, 1e-13}) {
-    const auto bar = bar_mesh<Hex8>(10, 3, 3);
-    Eigen::Matrix3Xd X = bar.nodes();
-    for (Index i = 0; i < X.cols(); ++i)
-      X.col(i) += jitter * Vec3(std::sin(7.1 * i), std::cos(3.3 * i), std::sin(1.7 * i));
-    Mesh<Hex8> mesh(X, bar.elements());
-    for (const char* set : {"xmin", "xmax"}) mesh.add_node_set(set, bar.node_set(set));
+    const Mesh<Hex8> mesh = moved_mesh(bar_mesh<Hex8>(10, 3, 3), jitter);
     Solver<Hex8, M> solver(mesh, Material{3000, 0.499, 1.0});
     solver.fix(mesh.node_set("xmin"));
     solver.add_gravity(Vec3(0, 0, -9.81));
