@@ -151,13 +151,17 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
   Scalar rnorm = p.residual(u, true);
   bool tangent_at_u = true, stale = false;
   Scalar first_scale = 0;
-  auto capped = [&](Scalar scale) {
-    return o.running_max_scale ? std::min(scale, o.max_scale_growth * first_scale) : scale;
+  // The force scale |r| is measured against at the current iterate: `previous` (the largest so
+  // far, or the first) raised to the iterate's own, which may exceed the first iterate's at
+  // most max_scale_growth times (with the running maximum).
+  auto scale_from = [&](Scalar previous) {
+    const Scalar own = o.running_max_scale ? std::min(p.scale(), o.max_scale_growth * first_scale) : p.scale();
+    return std::max({previous, own, Scalar(1e-30)});
   };
   for (int it = 0;; ++it) {
     if (!std::isfinite(rnorm)) p.invalid(u);
     if (it == 0) first_scale = p.scale();
-    res.scale = std::max({o.running_max_scale ? res.scale : first_scale, capped(p.scale()), Scalar(1e-30)});
+    res.scale = scale_from(o.running_max_scale ? res.scale : first_scale);
     res.residual = rnorm;
     res.relative_residual = rnorm / res.scale;
     if (it >= o.min_iterations && (rnorm <= o.tolerance * res.scale || rnorm <= o.absolute_tolerance)) {
@@ -188,7 +192,7 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
       tangent_at_u = false;
       // The test above decides; a linear model is then solved again from there, unless the
       // correction no longer changes u (the residual is at its round-off floor).
-      if (o.stagnation && !(rnorm <= o.tolerance * std::max(res.scale, capped(p.scale())) || rnorm <= o.absolute_tolerance) &&
+      if (o.stagnation && !(rnorm <= o.tolerance * scale_from(res.scale) || rnorm <= o.absolute_tolerance) &&
           norm(du) <= o.increment_tolerance * (norm(u) + o.length) && rnorm <= std::sqrt(o.tolerance) * res.scale) {
         res.residual = rnorm;
         res.relative_residual = rnorm / res.scale;
@@ -218,7 +222,7 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSea
     }
     // Stagnation: the increment no longer changes u and |r| is near the tolerance. A residual
     // that already meets the tolerance goes round the loop instead, to be reported converged.
-    const bool meets_tolerance = rnorm <= o.tolerance * std::max(res.scale, capped(p.scale())) || rnorm <= o.absolute_tolerance;
+    const bool meets_tolerance = rnorm <= o.tolerance * scale_from(res.scale) || rnorm <= o.absolute_tolerance;
     if (o.stagnation && !meets_tolerance && s * norm(du) <= o.increment_tolerance * (norm(u) + o.length) &&
         rnorm <= std::sqrt(o.tolerance) * res.scale) {
       res.residual = rnorm;
