@@ -32,6 +32,25 @@ mkdir -p "$build"
 # -fno-sanitize-recover: a UBSan report stops the run like an ASan one, so libFuzzer keeps the input.
 flags=(-std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
        -I "$root/include" -I/usr/include/eigen3)
+# Builds and fuzzing runs go JOBS at a time (default: the number of cores), each run still
+# getting its full time: on 2 cores the three readers take two rounds, not three.
+jobs=${JOBS:-$(nproc)}
+running=0
+status=0
+# Waits for one background job once `jobs` are running; a failed one sets status.
+throttle() {
+  if (( running >= jobs )); then
+    wait -n || status=1
+    running=$((running - 1))
+  fi
+}
+drain() {
+  while (( running > 0 )); do
+    wait -n || status=1
+    running=$((running - 1))
+  done
+}
+
 for t in "${targets[@]}"; do
   src=$here/fuzz_$t.cpp
   bin=$build/fuzz_$t
@@ -40,12 +59,32 @@ for t in "${targets[@]}"; do
   inc=$root/include/plastifem
   if [[ ! -x $bin || -n $(find "$src" "$here/fuzz_common.hpp" "$inc/mesh" "$inc/element" "$inc/core" -newer "$bin" \
                           -print -quit) ]]; then
+    throttle
     echo "building $bin"
-    "$cxx" "${flags[@]}" "$src" -o "$bin" -lfmt
+    "$cxx" "${flags[@]}" "$src" -o "$bin" -lfmt &
+    running=$((running + 1))
   fi
 done
+drain
+(( status == 0 )) || { echo "building a fuzz target failed" >&2; exit 1; }
 
-status=0
+# One target's fuzzing run; its summary is printed when it ends.
+fuzz_one() {
+  local t=$1 seeds=$here/corpus/$1 corpus=$build/corpus/$1 findings=$build/findings/$1
+  local log
+  log=$build/fuzz_$t.$(date +%Y%m%d-%H%M%S).log
+  echo "fuzzing $t for $seconds s (log: $log)"
+  # -timeout: an input that takes over 10 s is a hang; -rss_limit_mb: so is one that takes > 2 GB.
+  # New inputs go to the first directory, the working corpus; the seeds are only read.
+  if ! "$build/fuzz_$t" "$corpus" "$seeds" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=16384 \
+       -dict="$here/$t.dict" -print_final_stats=1 ${FUZZ_FLAGS:-} \
+       -artifact_prefix="$findings/" >"$log" 2>&1; then
+    echo "  $t FOUND something: see $log and $findings/" >&2
+    return 1
+  fi
+  grep -E "stat::number_of_executed_units|Done [0-9]+ runs" "$log" | tail -2 | sed "s/^/  $t: /" || true
+}
+
 for t in "${targets[@]}"; do
   seeds=$here/corpus/$t  # committed, small
   corpus=$build/corpus/$t  # grows with every run, not committed
@@ -59,18 +98,10 @@ for t in "${targets[@]}"; do
     echo "$t: seed corpus merged to $(ls "$seeds" | wc -l) files"
     continue
   fi
-  findings=$build/findings/$t
-  mkdir -p "$findings"
-  log=$build/fuzz_$t.$(date +%Y%m%d-%H%M%S).log
-  echo "fuzzing $t for $seconds s (log: $log)"
-  # -timeout: an input that takes over 10 s is a hang; -rss_limit_mb: so is one that takes > 2 GB.
-  # New inputs go to the first directory, the working corpus; the seeds are only read.
-  if ! "$build/fuzz_$t" "$corpus" "$seeds" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=16384 \
-       -dict="$here/$t.dict" -print_final_stats=1 ${FUZZ_FLAGS:-} \
-       -artifact_prefix="$findings/" >"$log" 2>&1; then
-    status=1
-    echo "  FOUND something: see $log and $findings/" >&2
-  fi
-  grep -E "stat::number_of_executed_units|Done [0-9]+ runs" "$log" | tail -2 | sed 's/^/  /' || true
+  mkdir -p "$build/findings/$t"
+  throttle
+  fuzz_one "$t" &
+  running=$((running + 1))
 done
+drain
 exit $status
