@@ -37,19 +37,14 @@ flags=(-std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recov
 jobs=${JOBS:-$(nproc)}
 running=0
 status=0
-# Waits for one background job once `jobs` are running; a failed one sets status.
-throttle() {
-  if (( running >= jobs )); then
-    wait -n || status=1
-    running=$((running - 1))
-  fi
+# reap: waits for one background job; a failed one sets status. throttle: reaps one once
+# `jobs` are running; drain: reaps them all.
+reap() {
+  wait -n || status=1
+  running=$((running - 1))
 }
-drain() {
-  while (( running > 0 )); do
-    wait -n || status=1
-    running=$((running - 1))
-  done
-}
+throttle() { if (( running >= jobs )); then reap; fi; }
+drain() { while (( running > 0 )); do reap; done; }
 
 for t in "${targets[@]}"; do
   src=$here/fuzz_$t.cpp
@@ -73,6 +68,7 @@ fuzz_one() {
   local t=$1 seeds=$here/corpus/$1 corpus=$build/corpus/$1 findings=$build/findings/$1
   local log
   log=$build/fuzz_$t.$(date +%Y%m%d-%H%M%S).log
+  mkdir -p "$findings"
   echo "fuzzing $t for $seconds s (log: $log)"
   # -timeout: an input that takes over 10 s is a hang; -rss_limit_mb: so is one that takes > 2 GB.
   # New inputs go to the first directory, the working corpus; the seeds are only read.
@@ -98,7 +94,6 @@ for t in "${targets[@]}"; do
     echo "$t: seed corpus merged to $(ls "$seeds" | wc -l) files"
     continue
   fi
-  mkdir -p "$build/findings/$t"
   throttle
   fuzz_one "$t" &
   running=$((running + 1))
