@@ -23,7 +23,9 @@ ElementScalarMatrix<E> element_mass(const ElementNodes<E>& X, Scalar density, Ma
   ElementScalarMatrix<E> m = ElementScalarMatrix<E>::Zero();
   for (int k = 0; k < q.size; ++k) {
     const auto Nk = E::shape(q.points[k]);
-    m += (density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant()) * Nk * Nk.transpose();
+    const Scalar dm = density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
+    for (int b = 0; b < E::num_nodes; ++b)
+      for (int a = 0; a < E::num_nodes; ++a) m(a, b) += dm * Nk[a] * Nk[b];
   }
   if (kind == MassKind::Lumped) {
     // HRZ lumping: the diagonal scaled to keep the element mass; positive for Tet10, whose row

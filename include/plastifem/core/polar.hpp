@@ -111,6 +111,14 @@ using PointArray = Eigen::Array<Scalar, Q, 1>;
 template <int Q>
 using PointMat3 = std::array<PointArray<Q>, 9>;
 
+/// x[q] <- sqrt(x[q]) for the Q lanes at x, in SIMD (Eigen's packet square root: a loop of
+/// std::sqrt is not vectorised, as it must keep errno).
+template <int Q>
+void lane_sqrt(Scalar* x) {
+  Eigen::Map<PointArray<Q>> m(x);
+  m = m.sqrt();
+}
+
 /// The rotations of Q deformation gradients at once (the quadrature points of one element),
 /// component-wise: F[r + 3c](q) = F_q(r, c), and R likewise. rotation_of's Newton-Schulz
 /// iteration runs in lockstep, each of the nine components of X an array over the points, so

@@ -32,7 +32,10 @@ using ShapeGradients = Eigen::Matrix<Scalar, E::num_nodes, 3>;
 /// Reference coordinates of the element centre (mean of the corners).
 template <FiniteElement E>
 Vec3 reference_centre() {
-  return E::reference_nodes().leftCols(E::num_vertices).rowwise().mean();
+  const auto X = E::reference_nodes();
+  Vec3 c = Vec3::Zero();
+  for (int a = 0; a < E::num_vertices; ++a) c += X.col(a);
+  return c / E::num_vertices;
 }
 
 /// Positions relative to node 0: what the small-strain models difference against their rest
@@ -123,6 +126,27 @@ struct QuadraturePoints {
   Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;
 };
 
+/// L_ab = sum_q dv_q g_qa . g_qb from the point-major gradients GT (QuadraturePoints::GT),
+/// symmetric bit for bit (the lower triangle mirrored). Loops over contiguous point columns:
+/// Eigen's scaled outer-product expression cost more to compile than the rest of the
+/// preparation, and ran no faster.
+template <FiniteElement E, int Q>
+Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> rotation_free_tangent(
+    const Eigen::Matrix<Scalar, Q, 3 * E::num_nodes>& GT, const Eigen::Array<Scalar, Q, 1>& dv) {
+  constexpr int N = E::num_nodes;
+  Eigen::Matrix<Scalar, N, N> L;
+  for (int b = 0; b < N; ++b) {
+    const Scalar *bx = &GT(0, 3 * b), *by = bx + Q, *bz = by + Q;
+    for (int a = b; a < N; ++a) {
+      const Scalar *ax = &GT(0, 3 * a), *ay = ax + Q, *az = ay + Q;
+      Scalar s = 0;
+      for (int k = 0; k < Q; ++k) s += dv[k] * (ax[k] * bx[k] + ay[k] * by[k] + az[k] * bz[k]);
+      L(a, b) = L(b, a) = s;
+    }
+  }
+  return L;
+}
+
 template <FiniteElement E>
 QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
   QuadraturePoints<E> p;
@@ -136,8 +160,7 @@ QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
     for (int a = 0; a < E::num_nodes; ++a)
       for (int j = 0; j < 3; ++j) p.GT(k, 3 * a + j) = p.G[k](a, j);
   }
-  p.L.setZero();
-  for (int k = 0; k < q.size; ++k) p.L.noalias() += p.dv[k] * p.G[k] * p.G[k].transpose();
+  p.L = rotation_free_tangent<E>(p.GT, p.dv_points);
   return p;
 }
 
