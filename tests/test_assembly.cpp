@@ -61,6 +61,55 @@ TEST_CASE("polar rotation matches the SVD from tiny to large stretches, and hand
   CHECK(rotation_of(Vec3(1, 1, 0).asDiagonal()).allFinite());
 }
 
+TEST_CASE("polar rotation of near-singular and inverted F is the closest proper rotation", "[polar]") {
+  // rotation_of's other branch (det F <= 5e-3 |F|^3 / 5.2: inverted, flattened, collapsed
+  // elements). The closest proper rotation maximises tr(R^T F) over det R = +1, and the
+  // maximum is s1 + s2 + sign(det F) s3 for the singular values s1 >= s2 >= s3 (the
+  // independent fact, with the singular values from Eigen's JacobiSVD); where s1 > s2 > s3 are
+  // apart the maximiser is unique and must equal U diag(1, 1, sign det F) V^T.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<Scalar> u(0, 1);
+  Scalar worst_trace = 0, worst_R = 0, worst_orth = 0;
+  int unique = 0, cases = 0;
+  for (int k = 0; k < 4000; ++k) {
+    // Singular values spanning collapse (0), rank 1 and 2, near-equal pairs; either sign of det.
+    Vec3 s(0.5 + u(rng), 0.5 + u(rng), 0.0);
+    const int kind = k % 5;
+    s[2] = kind == 0 ? 0.0 : kind == 1 ? 1e-9 * u(rng) : kind == 2 ? 0.004 * u(rng) : 0.02 * u(rng);
+    if (kind == 3) s[1] = s[0] * (1 + 1e-10 * u(rng));  // two equal singular values
+    if (kind == 4 && k % 2 == 0) s[1] = 1e-11;           // rank 1
+    if (k % 2 == 1) s[2] = -s[2];                         // inverted
+    const Mat3 F = random_rotation(rng) * s.asDiagonal() * random_rotation(rng).transpose();
+    const Mat3 R = rotation_of(F);
+    Eigen::JacobiSVD<Mat3> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Vec3 sv = svd.singularValues();
+    const Scalar sign = F.determinant() < 0 ? -1.0 : 1.0;
+    const Scalar best = sv[0] + sv[1] + sign * sv[2];
+    worst_trace = std::max(worst_trace, std::abs((R.transpose() * F).trace() - best) / sv[0]);
+    worst_orth = std::max(worst_orth, (R.transpose() * R - Mat3::Identity()).norm() + std::abs(R.determinant() - 1));
+    const Scalar l1 = sv[0] * sv[0], l2 = sv[1] * sv[1], l3 = sv[2] * sv[2];
+    if (l1 - l2 > 1e-3 * l1 && l2 - l3 > 1e-3 * l1) {
+      Mat3 U = svd.matrixU();
+      if ((U * svd.matrixV().transpose()).determinant() < 0) U.col(2) *= -1;
+      worst_R = std::max(worst_R, (R - U * svd.matrixV().transpose()).norm());
+      ++unique;
+    }
+    ++cases;
+  }
+  fmt::print("polar, near-singular and inverted F ({} cases, {} with a unique answer): tr(R^T F) against its "
+             "maximum {:.1e}, |R - R_svd| {:.1e}, |R^T R - I| + |det R - 1| {:.1e}\n",
+             cases, unique, worst_trace, worst_R, worst_orth);
+  // The maximum is flat at the maximiser (the error in tr(R^T F) is second order in R's), so
+  // 1e-12 of s1 is round-off. R is computed from the eigenvectors of F^T F, each accurate to
+  // about 1e-16 s1^2 / (its eigenvalue's gap): 1e-13 for the gaps of at least 1e-3 s1^2 of
+  // the unique cases (1e-12 allowed). Closer gaps (s2 and s3 both near zero) leave R less
+  // accurate, but then nearly any rotation in the plane of the collapse serves.
+  CHECK(worst_trace < 1e-12);
+  CHECK(worst_R < 1e-12);
+  CHECK(worst_orth < 1e-13);
+  CHECK(unique > 500);
+}
+
 TEST_CASE("batched polar rotations equal one-at-a-time ones, with every branch in one batch", "[polar]") {
   std::mt19937 rng(11);
   std::uniform_real_distribution<Scalar> u(-1, 1);
