@@ -29,15 +29,6 @@ using ElementMatrix = Eigen::Matrix<Scalar, 3 * E::num_nodes, 3 * E::num_nodes>;
 template <FiniteElement E>
 using ShapeGradients = Eigen::Matrix<Scalar, E::num_nodes, 3>;
 
-/// Reference coordinates of the element centre (mean of the corners).
-template <FiniteElement E>
-Vec3 reference_centre() {
-  const auto X = E::reference_nodes();
-  Vec3 c = Vec3::Zero();
-  for (int a = 0; a < E::num_vertices; ++a) c += X.col(a);
-  return c / E::num_vertices;
-}
-
 /// Positions relative to node 0: what the small-strain models difference against their rest
 /// shape, so that elements which are translated copies of each other share one ElementData
 /// (the solver stores each distinct shape once) without cancellation error from the offset.

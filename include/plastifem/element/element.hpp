@@ -37,6 +37,15 @@ static_assert(FiniteElement<Tet4> && FiniteElement<Tet10> && FiniteElement<Hex8>
 template <FiniteElement E>
 using ElementNodes = Eigen::Matrix<Scalar, 3, E::num_nodes>;
 
+/// Reference coordinates of the element centre (mean of the corners).
+template <FiniteElement E>
+Vec3 reference_centre() {
+  const auto X = E::reference_nodes();
+  Vec3 c = Vec3::Zero();
+  for (int a = 0; a < E::num_vertices; ++a) c += X.col(a);
+  return c / E::num_vertices;
+}
+
 /// J = dx/dxi = X dN for the reference gradient dN = dN/dxi at one point. (Written as loops:
 /// Eigen's 3 x N by N x 3 product costs ~0.3 s of compile time per element type, in every file.)
 template <FiniteElement E>

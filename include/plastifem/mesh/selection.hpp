@@ -132,7 +132,7 @@ std::optional<PointLocation> locate_point(const Mesh<E>& mesh, const Vec3& X, Sc
     const Vec3 lo = Xe.rowwise().minCoeff(), hi = Xe.rowwise().maxCoeff();
     const Scalar h = (hi - lo).maxCoeff();
     if (((X - lo).array() < -tol * h).any() || ((X - hi).array() > tol * h).any()) continue;
-    Vec3 xi = E::reference_nodes().leftCols(E::num_vertices).rowwise().mean();
+    Vec3 xi = reference_centre<E>();
     for (int it = 0; it < 30; ++it) {
       const Vec3 r = Xe * E::shape(xi) - X;
       if (r.norm() <= 1e-14 * h) break;
