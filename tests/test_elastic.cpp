@@ -21,6 +21,16 @@
 
 using namespace plastifem;
 
+// Every elastic model meets the ElasticModel concept on every element (the header checks none:
+// each Solver checks its own composition).
+template <class... Models>
+constexpr bool all_models_on_every_element =
+    ((ElasticModel<Models, Tet4> && ElasticModel<Models, Tet10> && ElasticModel<Models, Hex8>) && ...);
+static_assert(all_models_on_every_element<Linear, LinearMeanDilatation, Corotational, CorotationalPerElement,
+                                          CorotationalMeanDilatation, NeoHookean, NeoHookeanAbaqus, StableNeoHookean,
+                                          NeoHookeanMeanDilatation, NeoHookeanAbaqusMeanDilatation,
+                                          StableNeoHookeanMeanDilatation>);
+
 namespace {
 
 std::string error_of(const std::function<void()>& f) {

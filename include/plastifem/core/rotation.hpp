@@ -18,20 +18,23 @@
 namespace plastifem {
 
 /// The skew-symmetric matrix of w: hat(w) v = w x v.
-inline Mat3 hat(const Vec3& w) {
+template <class = void>  // a template only so that files that do not call it skip it
+Mat3 hat(const Vec3& w) {
   Mat3 W;
   W << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
   return W;
 }
 
 /// The rotation angle of R in [0, pi].
-inline Scalar rotation_angle(const Mat3& R) {
+template <class = void>  // a template only so that files that do not call it skip it
+Scalar rotation_angle(const Mat3& R) {
   const Vec3 a(0.5 * (R(2, 1) - R(1, 2)), 0.5 * (R(0, 2) - R(2, 0)), 0.5 * (R(1, 0) - R(0, 1)));
   return std::atan2(a.norm(), 0.5 * (R.trace() - 1));
 }
 
 /// log(R) as a rotation vector w = theta n, |w| = theta in [0, pi].
-inline Vec3 rotation_log(const Mat3& R) {
+template <class = void>  // a template only so that files that do not call it skip it
+Vec3 rotation_log(const Mat3& R) {
   const Vec3 a(0.5 * (R(2, 1) - R(1, 2)), 0.5 * (R(0, 2) - R(2, 0)), 0.5 * (R(1, 0) - R(0, 1)));
   const Scalar s = a.norm(), c = 0.5 * (R.trace() - 1);
   const Scalar theta = std::atan2(s, c);
@@ -52,7 +55,8 @@ inline Vec3 rotation_log(const Mat3& R) {
 }
 
 /// exp(hat(w)): Rodrigues' formula, with series for the coefficients below |w| = 1e-4.
-inline Mat3 rotation_exp(const Vec3& w) {
+template <class = void>  // a template only so that files that do not call it skip it
+Mat3 rotation_exp(const Vec3& w) {
   const Scalar t2 = w.squaredNorm(), t = std::sqrt(t2);
   Scalar A, B;  // sin(t) / t and (1 - cos(t)) / t^2
   if (t < 1e-4) {
@@ -67,9 +71,11 @@ inline Mat3 rotation_exp(const Vec3& w) {
 }
 
 /// R^eta = exp(eta log R): the rotation about R's axis by eta times its angle.
-inline Mat3 rotation_power(const Mat3& R, Scalar eta) { return rotation_exp(eta * rotation_log(R)); }
+template <class = void>  // a template only so that files that do not call it skip it
+Mat3 rotation_power(const Mat3& R, Scalar eta) { return rotation_exp(eta * rotation_log(R)); }
 
 /// Phi(R1, R2) = |log(R1 R2^T)|: the angle of the rotation taking R2 to R1, in [0, pi].
-inline Scalar geodesic_distance(const Mat3& R1, const Mat3& R2) { return rotation_angle(R1 * R2.transpose()); }
+template <class = void>  // a template only so that files that do not call it skip it
+Scalar geodesic_distance(const Mat3& R1, const Mat3& R2) { return rotation_angle(R1 * R2.transpose()); }
 
 }  // namespace plastifem

@@ -31,7 +31,8 @@ namespace plastifem {
 namespace detail {
 
 /// A += scale d(cof F)/dF, with d(cof_ij)/dF_kl = sum_mn e_ikm e_jln F_mn (the Hessian of J).
-inline void add_cofactor_derivative(Matrix9& A, const Mat3& F, Scalar scale) {
+template <class = void>  // a template only so that files that do not call it skip it
+void add_cofactor_derivative(Matrix9& A, const Mat3& F, Scalar scale) {
   auto eps = [](int p, int q, int r) { return static_cast<Scalar>((p - q) * (q - r) * (r - p)) / 2; };
   for (int l = 0; l < 3; ++l)
     for (int k = 0; k < 3; ++k)
@@ -58,6 +59,7 @@ struct NeoHookeanEnergy {
 
   /// psi_dev = mu/2 (I1 - 3) - mu ln J, P = mu (F - F^{-T}),
   /// A_ijab = mu d_ia d_jb + mu Finv_bi Finv_ja.
+  template <class = void>  // a template only so that files that do not call it skip it
   bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
     const Scalar J = F.determinant();
     if (!(J > 0)) return false;
@@ -82,6 +84,7 @@ struct NeoHookeanEnergy {
   /// The second Piola-Kirchhoff stress of the whole energy (deviatoric + volumetric parts),
   /// S = F^-1 P = mu (I - C^-1) + lambda ln J C^-1, in closed form: the plastic flow's stress
   /// (plastic/flow.hpp) at a third of the cost of F^-1 P. false where J <= 0.
+  template <class = void>  // a template only so that files that do not call it skip it
   bool second_piola(const Mat3& F, Mat3& S) const {
     const Scalar J = F.determinant();
     if (!(J > 0)) return false;
@@ -100,6 +103,7 @@ struct NeoHookeanAbaqusEnergy {
   explicit NeoHookeanAbaqusEnergy(const Material& m) : C10(m.mu() / 2), kappa(m.lambda() + 2 * m.mu() / 3) {}
 
   /// psi_dev = C10 (J^(-2/3) I1 - 3).
+  template <class = void>  // a template only so that files that do not call it skip it
   bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
     const Scalar J = F.determinant();
     if (!(J > 0)) return false;
@@ -141,6 +145,7 @@ struct StableNeoHookeanEnergy {
   }
 
   /// psi_dev = mu'/2 (I1 - 3) - mu'/2 ln(I1 + 1) - psi(I): defined for every F.
+  template <class = void>  // a template only so that files that do not call it skip it
   bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
     const Scalar I1 = F.squaredNorm();
     psi = 0.5 * mu * (I1 - 3) - 0.5 * mu * std::log(I1 + 1) - psi_rest;

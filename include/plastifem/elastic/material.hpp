@@ -51,7 +51,8 @@ struct Material {
 };
 
 /// Isotropic elasticity tensor in Voigt form (xx, yy, zz, xy, yz, zx; engineering shear).
-inline Eigen::Matrix<Scalar, 6, 6> voigt_elasticity(const Material& m) {
+template <class = void>  // a template only so that files that do not call it skip it
+Eigen::Matrix<Scalar, 6, 6> voigt_elasticity(const Material& m) {
   const Scalar mu = m.mu(), la = m.lambda();
   Eigen::Matrix<Scalar, 6, 6> C = Eigen::Matrix<Scalar, 6, 6>::Zero();
   C.topLeftCorner<3, 3>().setConstant(la);
@@ -61,12 +62,14 @@ inline Eigen::Matrix<Scalar, 6, 6> voigt_elasticity(const Material& m) {
 }
 
 /// Linear isotropic stress sigma = 2 mu eps + lambda tr(eps) I.
-inline Mat3 hooke(const Material& m, const Mat3& eps) {
+template <class = void>  // a template only so that files that do not call it skip it
+Mat3 hooke(const Material& m, const Mat3& eps) {
   return 2 * m.mu() * eps + m.lambda() * eps.trace() * Mat3::Identity();
 }
 
 /// Von Mises equivalent stress sqrt(3/2 s:s), s the deviator.
-inline Scalar von_mises(const Mat3& sigma) {
+template <class = void>  // a template only so that files that do not call it skip it
+Scalar von_mises(const Mat3& sigma) {
   const Mat3 s = sigma - sigma.trace() / 3 * Mat3::Identity();
   return std::sqrt(1.5 * s.squaredNorm());
 }

@@ -122,7 +122,8 @@ void add_point_contribution(const ShapeGradients<E>& G, Scalar dv, const Mat3& P
 /// dP/dF of the isotropic linear law P = 2 mu sym(H) + lambda tr(H) I in the frame rotated by R:
 /// P = R C(sym(R^T F) - I) with R held fixed (the warped corotational tangent; R = I: Hooke):
 ///   dP = mu (dF + R dF^T R) + lambda tr(R^T dF) R.
-inline Matrix9 rotated_hooke_tangent(const Mat3& R, Scalar mu, Scalar lambda) {
+template <class = void>  // a template only so that files that do not call it skip it
+Matrix9 rotated_hooke_tangent(const Mat3& R, Scalar mu, Scalar lambda) {
   Matrix9 A;
   for (int l = 0; l < 3; ++l)
     for (int k = 0; k < 3; ++k) {

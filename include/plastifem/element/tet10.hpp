@@ -38,6 +38,7 @@ struct Tet10 : TetrahedronQuadrature {
   using ShapeGradient = Eigen::Matrix<Scalar, num_nodes, 3>;
   using NodeMatrix = Eigen::Matrix<Scalar, 3, num_nodes>;
 
+  template <class = void>  // a template only so that files that do not call it skip it
   static NodeMatrix reference_nodes() {
     NodeMatrix X;
     X.leftCols<4>() << 0, 1, 0, 0,
@@ -47,6 +48,7 @@ struct Tet10 : TetrahedronQuadrature {
     return X;
   }
 
+  template <class = void>  // a template only so that files that do not call it skip it
   static ShapeVector shape(const Vec3& p) {
     const Scalar L[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
     ShapeVector N;
@@ -55,6 +57,7 @@ struct Tet10 : TetrahedronQuadrature {
     return N;
   }
 
+  template <class = void>  // a template only so that files that do not call it skip it
   static ShapeGradient gradient(const Vec3& p) {
     const Scalar L[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
     // dL_i/dx: rows of the Tet4 gradient.
