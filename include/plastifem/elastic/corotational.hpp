@@ -46,7 +46,8 @@ namespace plastifem {
 
 /// Cauchy stress of the corotational models for a deformation gradient F:
 /// R C(sym(R^T F) - I) R^T with R = polar(F).
-inline Mat3 corotated_stress(const Material& m, const Mat3& F) {
+template <class = void>  // a template only so that files that do not call it skip it
+Mat3 corotated_stress(const Material& m, const Mat3& F) {
   const Mat3 R = rotation_of(F);
   const Mat3 S = R.transpose() * F;
   return R * hooke(m, 0.5 * (S + S.transpose()) - Mat3::Identity()) * R.transpose();

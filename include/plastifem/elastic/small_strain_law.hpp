@@ -24,6 +24,7 @@ struct SmallStrainLaw {
   explicit SmallStrainLaw(const Material& m) : mu(m.mu()), lambda(m.lambda()) {}
 
   /// psi, P and A at F in the frame rotated by R (R = I: plain small strain).
+  template <class = void>  // a template only so that files that do not call it skip it
   Scalar evaluate(const Mat3& F, const Mat3& R, Mat3& P, Matrix9* A) const {
     const Mat3 S = R.transpose() * F;
     const Mat3 eps = 0.5 * (S + S.transpose()) - Mat3::Identity();
@@ -33,6 +34,7 @@ struct SmallStrainLaw {
     return mu * eps.squaredNorm() + 0.5 * lambda * tr * tr;
   }
   /// The deviatoric part alone (mean-dilatation models): psi = mu dev(eps):dev(eps).
+  template <class = void>  // a template only so that files that do not call it skip it
   Scalar evaluate_deviatoric(const Mat3& F, const Mat3& R, Mat3& P, Matrix9* A) const {
     const Mat3 S = R.transpose() * F;
     const Mat3 eps = 0.5 * (S + S.transpose()) - Mat3::Identity();
