@@ -7,8 +7,9 @@
 #   umbrella         #include <plastifem/plastifem.hpp> and nothing used
 #   solver           one Solver<Hex8, Corotational>: a bar, a fixed end, gravity, a step, a
 #                    static solve, header-only (the TU instantiates and optimises everything)
-#   solver+compiled  the same file against plastifem::compiled (-DPLASTIFEM_USE_COMPILED: the
-#                    common Solver types are extern templates, compiled once in the library)
+#   solver+compiled  the same file against plastifem::compiled (-DPLASTIFEM_USE_COMPILED and
+#                    -DPLASTIFEM_CHECK_FORMATS, as the target carries them: the common Solver
+#                    types are extern templates, compiled once in the library)
 #   readers          the umbrella plus <plastifem/mesh/io/io.hpp> and one read_gmsh<Hex8>
 #
 # Flags: CXX (default g++), OPT (default -O2), the include paths of the build's CMake cache
@@ -66,7 +67,7 @@ measure() {  # name, extra flags...: prints "name seconds megabytes"
 results=$( {
   measure umbrella
   measure solver
-  measure solver+compiled -DPLASTIFEM_USE_COMPILED
+  measure solver+compiled -DPLASTIFEM_USE_COMPILED -DPLASTIFEM_CHECK_FORMATS
   measure readers
 } )
 mkdir -p "$build/bench"

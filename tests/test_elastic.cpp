@@ -512,6 +512,9 @@ TEST_CASE("material validation names the bad parameter, from_lame round-trips", 
     INFO("rho = " << rho);
     REQUIRE(contains(error_of([&] { check({1000, 0.3, rho}); }), "density"));
   }
+  // The message carries the value, formatted: at run time in test_elastic_native (built
+  // header-only, without PLASTIFEM_CHECK_FORMATS), checked at compile time in test_elastic.
+  REQUIRE(error_of([&] { check({-5.0, 0.3, 1}); }) == "Young's modulus must be finite and > 0, got E = -5");
   // Admissible extremes just inside the open interval are accepted.
   REQUIRE(error_of([&] { check({1000, 0.499, 1}); }) == "(no error)");
   REQUIRE(error_of([&] { check({1000, -0.99, 1}); }) == "(no error)");
