@@ -66,16 +66,47 @@ Mat3 jacobian(const ElementNodes<E>& X, const Vec3& xi) {
   return jacobian_at<E>(X, E::gradient(xi));
 }
 
+namespace detail {
+/// p[Start] + ... + p[Start + Length - 1] summed pairwise (halves first), as Eigen reduces a
+/// fixed-size expression it cannot vectorise.
+template <int Start, int Length>
+Scalar pairwise_sum(const Scalar* p) {
+  if constexpr (Length == 1) return p[Start];
+  else return pairwise_sum<Start, Length / 2>(p) + pairwise_sum<Start + Length / 2, Length - Length / 2>(p);
+}
+}  // namespace detail
+
 /// Shape gradients with respect to physical coordinates, dN/dx = dN/dxi J^{-1}, for the
 /// reference gradient dN at one point; `det_J`, if given, gets det J.
 template <FiniteElement E>
 Eigen::Matrix<Scalar, E::num_nodes, 3> physical_gradient_at(const ElementNodes<E>& X,
                                                            const Eigen::Matrix<Scalar, E::num_nodes, 3>& dN,
                                                            Scalar* det_J = nullptr) {
-  // Eigen's products for G and jacobian_at's loops for det J: the round-off of every earlier
-  // version (extreme-state tests follow Newton paths that round-off can change).
   if (det_J) *det_J = jacobian_at<E>(X, dN).determinant();
-  return dN * (X * dN).inverse();
+  // G = dN (X dN)^-1 as loops, with the round-off of Eigen's expression `dN * (X * dN).inverse()`
+  // that earlier versions used (bit for bit with SSE2, the default x86-64 build; tested): the
+  // expression cost 43 MB of g++'s memory in every file with a Solver, and an extremes case
+  // (a chaotic release) follows Newton paths that a change of round-off can flip. Eigen sums
+  // X dN's rows 0 and 1 in sequence (as one 2-wide packet) and row 2 pairwise (its scalar
+  // reduction); G's three terms are summed in sequence.
+  constexpr int N = E::num_nodes;
+  Mat3 J;
+  for (int j = 0; j < 3; ++j) {
+    Scalar p[N];
+    for (int i = 0; i < 2; ++i) {
+      Scalar s = X(i, 0) * dN(0, j);
+      for (int a = 1; a < N; ++a) s += X(i, a) * dN(a, j);
+      J(i, j) = s;
+    }
+    for (int a = 0; a < N; ++a) p[a] = X(2, a) * dN(a, j);
+    J(2, j) = detail::pairwise_sum<0, N>(p);
+  }
+  const Mat3 J_inverse = J.inverse();
+  Eigen::Matrix<Scalar, N, 3> G;
+  for (int j = 0; j < 3; ++j)
+    for (int a = 0; a < N; ++a)
+      G(a, j) = dN(a, 0) * J_inverse(0, j) + dN(a, 1) * J_inverse(1, j) + dN(a, 2) * J_inverse(2, j);
+  return G;
 }
 
 /// dN/dx at the reference point xi.
