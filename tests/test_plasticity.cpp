@@ -674,6 +674,31 @@ TEST_CASE("real-time mode and the lumped mass run plasticity too", "[plasticity]
     }
 }
 
+#ifdef _OPENMP
+TEST_CASE("threads: a plastic run on two threads is bit for bit the run on one", "[plasticity][threads]") {
+  // bar90: below the size from which matrix-vector products are threaded, so every loop of a
+  // step sums in the same order whatever the thread count: the elements, the plastic update
+  // (one flow per element) and the re-preparation of the changed elements' data (each element
+  // into its own entry, in parallel since the sync went parallel).
+  SolverSettings one, two;
+  one.threads = 1;
+  two.threads = 2;
+  auto check = [&](auto a, auto b) {
+    using E = typename decltype(a)::Element;
+    REQUIRE(Assembler<E>(a.mesh()).pattern()->num_blocks() <= 3000);
+    INFO(E::name);
+    CHECK(max_rest_change(a) > 0.01);  // it flowed, and every flowing step re-prepared elements
+    CHECK((a.displacement().array() == b.displacement().array()).all());
+    CHECK((a.velocity().array() == b.velocity().array()).all());
+    CHECK((a.material_positions().array() == b.material_positions().array()).all());
+  };
+  check(stretch<Hex8, Corotational, VertexBlended>(10, 3, 3, 350, stretch_params(1000, 0.4), 2.5, one),
+        stretch<Hex8, Corotational, VertexBlended>(10, 3, 3, 350, stretch_params(1000, 0.4), 2.5, two));
+  check(stretch<Tet4, NeoHookean, CellCentered>(10, 3, 3, 1000, stretch_params(1500, 0.25, 25), 2.5, one),
+        stretch<Tet4, NeoHookean, CellCentered>(10, 3, 3, 1000, stretch_params(1500, 0.25, 25), 2.5, two));
+}
+#endif
+
 TEST_CASE("safeguard: plasticity is switched off before an element degenerates", "[plasticity]") {
   // Full flow (rate 1, dt 0.5, tau 0: gamma = 0.5 per step) under a crushing load: the
   // elements flatten step by step; each one's plasticity is switched off once its shape

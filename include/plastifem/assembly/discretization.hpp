@@ -86,6 +86,15 @@ class Discretization {
     data_.set_rest_shape(e, X, checked);
     if constexpr (Enriched) enrichment_.set_rest_shape(e, X);
   }
+  /// set_rest_shape(e, rest_of(e), checked = true) for the distinct elements `elements`, the
+  /// element data prepared on `threads` threads (ElementDataTable::set_rest_shapes).
+  template <class RestOf>
+  void set_rest_shapes(const std::vector<Index>& elements, RestOf&& rest_of, int threads) {
+    data_.set_rest_shapes(elements, rest_of, threads);
+    if constexpr (Enriched)
+      for (Index e : elements)
+        if (enrichment_.element(e)) enrichment_.set_rest_shape(e, rest_of(e));
+  }
   Index num_dofs() const { return assembler_.num_dofs(); }
   /// Diameter of the mesh's bounding box (the length scale of increment tests).
   Scalar size() const { return size_; }

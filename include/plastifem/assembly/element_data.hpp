@@ -16,6 +16,7 @@
 // linear model's assembled constant tangent, the initial stiffness of Rayleigh damping).
 // check_rest_shape(X) is the per-element rest-shape test (positive Jacobian at every corner and
 // quadrature point) a plastic update runs before it commits a new shape.
+#include <plastifem/core/parallel.hpp>
 #include <plastifem/elastic/elastic.hpp>
 #include <plastifem/mesh/mesh.hpp>
 
@@ -84,6 +85,28 @@ class ElementDataTable {
       data_.push_back(std::move(d));
       users_.push_back(1);
     }
+    ++epoch_;
+  }
+
+  /// set_rest_shape for the distinct elements `elements`, each with its rest shape
+  /// `rest_of(e)` as the caller checked it, the preparations on `threads` threads: the
+  /// copy-on-write bookkeeping first, serially, then every element's preparation into its own
+  /// entry (independent work: a plastic step re-prepares every element it changed).
+  template <class RestOf>
+  void set_rest_shapes(const std::vector<Index>& elements, RestOf&& rest_of, int threads) {
+    if (elements.empty()) return;
+    for (Index e : elements) {
+      const std::uint32_t old = shape_of_[e];
+      if (users_[old] == 1) continue;  // e alone uses it: rewritten in place
+      --users_[old];
+      shape_of_[e] = static_cast<std::uint32_t>(data_.size());
+      data_.push_back(data_[old]);  // a placeholder (not every Data has a default), prepared below
+      users_.push_back(1);
+    }
+    parallel_for(static_cast<Index>(elements.size()), threads, [&](Index k) {
+      const Index e = elements[static_cast<size_t>(k)];
+      data_[shape_of_[e]] = Model::template prepare<E>(rest_of(e), material_);
+    });
     ++epoch_;
   }
 

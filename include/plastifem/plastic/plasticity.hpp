@@ -14,7 +14,7 @@
 // the step took.
 //
 // sync(): re-prepares the element data of the elements whose rest nodes differ from the table's
-// (copy-on-write per element, assembly/element_data.hpp), and hands the body the rest
+// (copy-on-write per element, assembly/element_data.hpp; the elements in parallel), and hands the body the rest
 // displacement x - X (for constant-tangent models, f = K (u - (x - X))). A failed or cut step
 // can leave the data at a sub-step's table; the solver syncs back to the committed one.
 #include <plastifem/assembly/discretization.hpp>
@@ -207,8 +207,10 @@ class Plasticity {
 
   /// Brings the body's element data to the table's rest shapes (see the file comment).
   /// Returns whether anything changed.
+  /// The element data are prepared on `threads` threads (every flowing element's, in every
+  /// step: a third of the plastic work).
   template <bool Enriched>
-  bool sync(Discretization<E, Elastic, Enriched>& body, const PlasticTable& table) {
+  bool sync(Discretization<E, Elastic, Enriched>& body, const PlasticTable& table, int threads) {
     if (table.version == synced_version_) return false;
     const Mesh<E>& mesh = body.mesh();
     const Index n = mesh.num_nodes();
@@ -216,24 +218,28 @@ class Plasticity {
     for (Index i = 0; i < n; ++i)
       for (int d = 0; d < 3; ++d)
         if (table.rest[3 * i + d] != synced_rest_[3 * i + d]) node_moved_[i] = 1;
+    moved_elements_.clear();
     for (Index e = 0; e < mesh.num_elements(); ++e) {
       const auto& c = mesh.element(e);
       bool m = false;
       for (int a = 0; a < N && !m; ++a) m = node_moved_[c[a]];
-      if (!m) continue;
-      const ElementNodes<E> X = element_of(mesh, e, table.rest);
-      body.set_rest_shape(e, X, /*checked=*/true);  // by the update that proposed it
-      // The element's own flow gradients (copy-on-write, as the element data).
-      const std::uint32_t old = grad_of_[e];
-      if (grad_users_[old] == 1) {
-        grads_[old] = typename Flow::Gradients(points_, X);
-      } else {
-        --grad_users_[old];
-        grad_of_[e] = static_cast<std::uint32_t>(grads_.size());
-        grads_.emplace_back(points_, X);
-        grad_users_.push_back(1);
-      }
+      if (m) moved_elements_.push_back(e);
     }
+    auto rest_of = [&](Index e) { return element_of(mesh, e, table.rest); };
+    body.set_rest_shapes(moved_elements_, rest_of, threads);  // checked by the update that proposed them
+    // The elements' own flow gradients (copy-on-write, as the element data).
+    for (Index e : moved_elements_) {
+      const std::uint32_t old = grad_of_[e];
+      if (grad_users_[old] == 1) continue;
+      --grad_users_[old];
+      grad_of_[e] = static_cast<std::uint32_t>(grads_.size());
+      grads_.emplace_back();
+      grad_users_.push_back(1);
+    }
+    parallel_for(static_cast<Index>(moved_elements_.size()), threads, [&](Index k) {
+      const Index e = moved_elements_[static_cast<size_t>(k)];
+      grads_[grad_of_[e]] = typename Flow::Gradients(points_, rest_of(e));
+    });
     rest_u_ = table.rest - Eigen::Map<const Vector>(mesh.nodes().data(), 3 * n);
     body.set_rest_displacement(rest_u_);
     synced_rest_ = table.rest;
@@ -278,6 +284,7 @@ class Plasticity {
   std::vector<ElementNodes<E>> z_;
   std::vector<FlowResult> result_;
   std::vector<char> changed_, off_new_, node_moved_;
+  std::vector<Index> moved_elements_;
   std::vector<PlasticReport> reports_;
   PlasticTable out_;  ///< the flowed entries of the changed elements, before the commit
   Vector rest_new_, synced_rest_, rest_u_;

@@ -647,7 +647,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::sync_rest_shapes(const StateType& s) {
   if constexpr (plastic) {
-    if (plastic_.sync(body_, s.plastic)) dynamics_.invalidate();  // the real-time linearisation was of the old shapes
+    if (plastic_.sync(body_, s.plastic, threads())) dynamics_.invalidate();  // the real-time linearisation was of the old shapes
   } else {
     (void)s;
   }
