@@ -105,6 +105,7 @@ class BareNewmark {
     constrained_blocks_.zero(rhs_);
     a_ = Vector::Zero(num_dofs());
     LinearSolver cg({LinearSolverKind::ConjugateGradient, 1e-13, 2000});
+    cg.set_threads(threads_);  // as the Solver's: threaded products round differently
     cg.solve(A_, rhs_, a_);
   }
 
