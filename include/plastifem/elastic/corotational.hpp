@@ -168,6 +168,7 @@ struct Corotational {
       R = rotation_of(F);
       S = R.transpose() * F;
     }
+    template <class = void>  // a template only so that files that do not call it skip it
     Scalar evaluate(const Mat3& F, Mat3& P, Matrix9* A, TangentKind kind = TangentKind::Projected) const {
       Mat3 R, S;
       rotation_stretch(F, R, S);
