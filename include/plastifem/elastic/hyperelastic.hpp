@@ -51,19 +51,21 @@ void add_cofactor_derivative(Matrix9& A, const Mat3& F, Scalar scale) {
 // P_vol = U'(J) cof F and A_vol = U'' cof (x) cof + U' d(cof)/dF for every energy; the
 // mean-dilatation variant evaluates U at the element-mean J instead of at each point.
 
-struct NeoHookeanEnergy {
+template <class T = Scalar>
+struct BasicNeoHookeanEnergy {
+  using M3 = Eigen::Matrix<T, 3, 3>;
+  using M9 = Eigen::Matrix<T, 9, 9>;
   static constexpr const char* name = "NeoHookean";
   static constexpr const char* mean_dilatation_name = "NeoHookeanMeanDilatation";
-  Scalar mu, lambda;
-  explicit NeoHookeanEnergy(const Material& m) : mu(m.mu()), lambda(m.lambda()) {}
+  T mu, lambda;
+  explicit BasicNeoHookeanEnergy(const Material& m) : mu(m.mu()), lambda(m.lambda()) {}
 
   /// psi_dev = mu/2 (I1 - 3) - mu ln J, P = mu (F - F^{-T}),
   /// A_ijab = mu d_ia d_jb + mu Finv_bi Finv_ja.
-  template <class = void>  // a template only so that files that do not call it skip it
-  bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
-    const Scalar J = F.determinant();
+  bool deviatoric(const M3& F, T& psi, M3& P, M9* A) const {
+    const T J = F.determinant();
     if (!(J > 0)) return false;
-    const Mat3 Finv = F.inverse();
+    const M3 Finv = F.inverse();
     psi = 0.5 * mu * (F.squaredNorm() - 3) - mu * std::log(J);
     P = mu * (F - Finv.transpose());
     if (A)
@@ -75,40 +77,42 @@ struct NeoHookeanEnergy {
     return true;
   }
   /// U = lambda/2 (ln J)^2.
-  bool volumetric(Scalar J, Scalar& U, Scalar& dU, Scalar& ddU) const {
+  bool volumetric(T J, T& U, T& dU, T& ddU) const {
     if (!(J > 0)) return false;
-    const Scalar l = std::log(J);
+    const T l = std::log(J);
     U = 0.5 * lambda * l * l, dU = lambda * l / J, ddU = lambda * (1 - l) / (J * J);
     return true;
   }
   /// The second Piola-Kirchhoff stress of the whole energy (deviatoric + volumetric parts),
   /// S = F^-1 P = mu (I - C^-1) + lambda ln J C^-1, in closed form: the plastic flow's stress
   /// (plastic/flow.hpp) at a third of the cost of F^-1 P. false where J <= 0.
-  template <class = void>  // a template only so that files that do not call it skip it
-  bool second_piola(const Mat3& F, Mat3& S) const {
-    const Scalar J = F.determinant();
+  bool second_piola(const M3& F, M3& S) const {
+    const T J = F.determinant();
     if (!(J > 0)) return false;
-    const Mat3 C = F.transpose() * F;
-    const Mat3 Cinv = detail::cofactor(C) / (J * J);  // C symmetric: cof(C) = cof(C)^T; det C = J^2
+    const M3 C = F.transpose() * F;
+    const M3 Cinv = detail::cofactor(C) / (J * J);  // C symmetric: cof(C) = cof(C)^T; det C = J^2
     S = (lambda * std::log(J) - mu) * Cinv;
     S.diagonal().array() += mu;
     return true;
   }
 };
+using NeoHookeanEnergy = BasicNeoHookeanEnergy<>;
 
-struct NeoHookeanAbaqusEnergy {
+template <class T = Scalar>
+struct BasicNeoHookeanAbaqusEnergy {
+  using M3 = Eigen::Matrix<T, 3, 3>;
+  using M9 = Eigen::Matrix<T, 9, 9>;
   static constexpr const char* name = "NeoHookeanAbaqus";
   static constexpr const char* mean_dilatation_name = "NeoHookeanAbaqusMeanDilatation";
-  Scalar C10, kappa;  ///< kappa = 2 / D1, the bulk modulus
-  explicit NeoHookeanAbaqusEnergy(const Material& m) : C10(m.mu() / 2), kappa(m.lambda() + 2 * m.mu() / 3) {}
+  T C10, kappa;  ///< kappa = 2 / D1, the bulk modulus
+  explicit BasicNeoHookeanAbaqusEnergy(const Material& m) : C10(m.mu() / 2), kappa(m.lambda() + 2 * m.mu() / 3) {}
 
   /// psi_dev = C10 (J^(-2/3) I1 - 3).
-  template <class = void>  // a template only so that files that do not call it skip it
-  bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
-    const Scalar J = F.determinant();
+  bool deviatoric(const M3& F, T& psi, M3& P, M9* A) const {
+    const T J = F.determinant();
     if (!(J > 0)) return false;
-    const Mat3 Finv = F.inverse();
-    const Scalar I1 = F.squaredNorm(), a = std::pow(J, -2.0 / 3.0);
+    const M3 Finv = F.inverse();
+    const T I1 = F.squaredNorm(), a = std::pow(J, -2.0 / 3.0);
     psi = C10 * (a * I1 - 3);
     P = 2 * C10 * a * (F - I1 / 3 * Finv.transpose());
     if (A)
@@ -124,18 +128,22 @@ struct NeoHookeanAbaqusEnergy {
     return true;
   }
   /// U = kappa/2 (J - 1)^2 = (J - 1)^2 / D1.
-  bool volumetric(Scalar J, Scalar& U, Scalar& dU, Scalar& ddU) const {
+  bool volumetric(T J, T& U, T& dU, T& ddU) const {
     U = 0.5 * kappa * (J - 1) * (J - 1), dU = kappa * (J - 1), ddU = kappa;
     return true;
   }
 };
+using NeoHookeanAbaqusEnergy = BasicNeoHookeanAbaqusEnergy<>;
 
-struct StableNeoHookeanEnergy {
+template <class T = Scalar>
+struct BasicStableNeoHookeanEnergy {
+  using M3 = Eigen::Matrix<T, 3, 3>;
+  using M9 = Eigen::Matrix<T, 9, 9>;
   static constexpr const char* name = "StableNeoHookean";
   static constexpr const char* mean_dilatation_name = "StableNeoHookeanMeanDilatation";
-  Scalar mu, lambda, alpha;  ///< the reparametrised mu', lambda' and the rest offset alpha
-  Scalar psi_rest;           ///< psi(I), subtracted so that the rest state has zero energy
-  explicit StableNeoHookeanEnergy(const Material& m)
+  T mu, lambda, alpha;  ///< the reparametrised mu', lambda' and the rest offset alpha
+  T psi_rest;           ///< psi(I), subtracted so that the rest state has zero energy
+  explicit BasicStableNeoHookeanEnergy(const Material& m)
       : mu(4.0 / 3.0 * m.mu()), lambda(m.lambda() + 5.0 / 6.0 * m.mu()), alpha(1 + 0.75 * mu / lambda),
         psi_rest(0.5 * lambda * (1 - alpha) * (1 - alpha) - 0.5 * mu * std::log(4.0)) {
     if (!(lambda > 0))
@@ -145,24 +153,24 @@ struct StableNeoHookeanEnergy {
   }
 
   /// psi_dev = mu'/2 (I1 - 3) - mu'/2 ln(I1 + 1) - psi(I): defined for every F.
-  template <class = void>  // a template only so that files that do not call it skip it
-  bool deviatoric(const Mat3& F, Scalar& psi, Mat3& P, Matrix9* A) const {
-    const Scalar I1 = F.squaredNorm();
+  bool deviatoric(const M3& F, T& psi, M3& P, M9* A) const {
+    const T I1 = F.squaredNorm();
     psi = 0.5 * mu * (I1 - 3) - 0.5 * mu * std::log(I1 + 1) - psi_rest;
-    const Scalar s = mu * (1 - 1 / (I1 + 1));
+    const T s = mu * (1 - 1 / (I1 + 1));
     P = s * F;
     if (A) {
-      const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> f(F.data());
-      *A = s * Matrix9::Identity() + (2 * mu / ((I1 + 1) * (I1 + 1))) * f * f.transpose();
+      const Eigen::Map<const Eigen::Matrix<T, 9, 1>> f(F.data());
+      *A = s * M9::Identity() + (2 * mu / ((I1 + 1) * (I1 + 1))) * f * f.transpose();
     }
     return true;
   }
   /// U = lambda'/2 (J - alpha)^2: defined for J <= 0 too, pushing inverted elements back.
-  bool volumetric(Scalar J, Scalar& U, Scalar& dU, Scalar& ddU) const {
+  bool volumetric(T J, T& U, T& dU, T& ddU) const {
     U = 0.5 * lambda * (J - alpha) * (J - alpha), dU = lambda * (J - alpha), ddU = lambda;
     return true;
   }
 };
+using StableNeoHookeanEnergy = BasicStableNeoHookeanEnergy<>;
 
 template <FiniteElement E>
 struct HyperelasticData {
@@ -184,6 +192,10 @@ struct Hyperelastic {
   static constexpr const char* name = V == Volumetric::Full ? Energy::name : Energy::mean_dilatation_name;
   static constexpr bool constant_tangent = false;
   static constexpr Volumetric volumetric = V;
+  // The energy's matrix types (Mat3 and Matrix9): written with them, the code below depends on
+  // Energy, so a file that uses no hyperelastic model does not instantiate any of it.
+  using M3 = typename Energy::M3;
+  using M9 = typename Energy::M9;
 
   template <FiniteElement E>
   struct ElementData : HyperelasticData<E> {
@@ -209,17 +221,17 @@ struct Hyperelastic {
   struct Law {
     Energy energy;
     explicit Law(const Material& m) : energy(m) {}
-    Scalar evaluate(const Mat3& F, Mat3& P, Matrix9* A, TangentKind kind = TangentKind::Projected) const {
+    Scalar evaluate(const M3& F, M3& P, M9* A, TangentKind kind = TangentKind::Projected) const {
       Scalar psi, U, dU, ddU;
       const Scalar J = F.determinant();
       if (!energy.deviatoric(F, psi, P, A) || !energy.volumetric(J, U, dU, ddU)) {
         P.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
         return std::numeric_limits<Scalar>::infinity();
       }
-      const Mat3 cof = detail::cofactor(F);
+      const M3 cof = detail::cofactor(F);
       P += dU * cof;
       if (A) {
-        const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> c(cof.data());
+        const Eigen::Map<const Eigen::Matrix<typename M3::Scalar, 9, 1>> c(cof.data());
         A->noalias() += ddU * c * c.transpose();
         detail::add_cofactor_derivative(*A, F, dU);
         if (kind == TangentKind::Projected) project_psd<9>(*A);
@@ -275,21 +287,21 @@ struct Hyperelastic {
       if (!energy.volumetric(Jbar, U, dU, ddU)) return invalid();
       W += volume * U;
     }
-    Matrix9 A;
+    M9 A;
     ElementVector<E> dJbar = ElementVector<E>::Zero();
     for (int q = 0; q < Q; ++q) {
       const ShapeGradients<E>& G = Gs[q];
       const Scalar dv = dvs[q];
-      const Mat3 F = x * G;
-      const Mat3 cof = detail::cofactor(F);
+      const M3 F = x * G;
+      const M3 cof = detail::cofactor(F);
       Scalar psi;
-      Mat3 P;
+      M3 P;
       if (!energy.deviatoric(F, psi, P, K ? &A : nullptr)) return invalid();
       if constexpr (V == Volumetric::Full) {
         if (!energy.volumetric(F.determinant(), U, dU, ddU)) return invalid();
         psi += U;
         if (K) {
-          const Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>> c(cof.data());
+          const Eigen::Map<const Eigen::Matrix<typename M3::Scalar, 9, 1>> c(cof.data());
           A.noalias() += ddU * c * c.transpose();
         }
       } else if (K) {
@@ -332,16 +344,16 @@ struct Hyperelastic {
     for (int q = 0; q < Q; ++q) {
       const ShapeGradients<E>& G = d.points.G[q];
       const Scalar dv = d.points.dv[q];
-      const Mat3 F = x * G;
+      const M3 F = x * G;
       const Scalar J = F.determinant();
       if (!(J > 0)) {
         f.setConstant(std::numeric_limits<Scalar>::quiet_NaN());
         return std::numeric_limits<Scalar>::infinity();
       }
       const Scalar lnJ = std::log(J);
-      const Mat3 FinvT = detail::cofactor(F) / J;
+      const M3 FinvT = detail::cofactor(F) / J;
       W += dv * (0.5 * mu * (F.squaredNorm() - 3) - mu * lnJ + 0.5 * lambda * lnJ * lnJ);
-      const Mat3 P = mu * F + (lambda * lnJ - mu) * FinvT;
+      const M3 P = mu * F + (lambda * lnJ - mu) * FinvT;
       fm.noalias() += (dv * P) * G.transpose();
       if (K) {
         Eigen::Map<Eigen::Matrix<Scalar, 3, N>> h(H.col(q).data());
@@ -355,7 +367,7 @@ struct Hyperelastic {
       for (int b = 0; b < N; ++b)
         for (int a = b; a < N; ++a) {
           const auto Hb = H.template middleRows<3>(3 * b).transpose();
-          Mat3 Kab = lambda * Hd.template middleRows<3>(3 * a).lazyProduct(Hb) +
+          M3 Kab = lambda * Hd.template middleRows<3>(3 * a).lazyProduct(Hb) +
                      Hc.template middleRows<3>(3 * a).lazyProduct(Hb).transpose();
           Kab.diagonal().array() += mu * L(a, b);
           K->template block<3, 3>(3 * a, 3 * b) = Kab;
@@ -367,12 +379,12 @@ struct Hyperelastic {
 
   /// Cauchy stress at the element centre: sigma = P F^T / J (volumetric part at the centre J).
   template <FiniteElement E>
-  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material&) {
-    const Mat3 F = x * d.G_centre;
+  static M3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material&) {
+    const M3 F = x * d.G_centre;
     Scalar psi, U, dU, ddU;
-    Mat3 P;
+    M3 P;
     if (!d.energy.deviatoric(F, psi, P, nullptr) || !d.energy.volumetric(F.determinant(), U, dU, ddU))
-      return Mat3::Constant(std::numeric_limits<Scalar>::quiet_NaN());
+      return M3::Constant(std::numeric_limits<Scalar>::quiet_NaN());
     P += dU * detail::cofactor(F);
     return P * F.transpose() / F.determinant();
   }
