@@ -46,11 +46,13 @@ namespace plastifem {
 
 /// Cauchy stress of the corotational models for a deformation gradient F:
 /// R C(sym(R^T F) - I) R^T with R = polar(F).
-template <class = void>  // a template only so that files that do not call it skip it
-Mat3 corotated_stress(const Material& m, const Mat3& F) {
-  const Mat3 R = rotation_of(F);
-  const Mat3 S = R.transpose() * F;
-  return R * hooke(m, 0.5 * (S + S.transpose()) - Mat3::Identity()) * R.transpose();
+template <class L = void>  // see Lazy (core/types.hpp)
+Eigen::Matrix<Lazy<L>, 3, 3> corotated_stress(const Material& m, const Mat3& F_) {
+  using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+  const M3& F = F_;
+  const M3 R = rotation_of(F);
+  const M3 S = R.transpose() * F;
+  return R * hooke<L>(m, 0.5 * (S + S.transpose()) - M3::Identity()) * R.transpose();
 }
 
 /// Volumetric::MeanDilatation: the B-bar locking remedy (elastic/small_strain.hpp) in the
@@ -168,34 +170,39 @@ struct Corotational {
       R = rotation_of(F);
       S = R.transpose() * F;
     }
-    template <class = void>  // a template only so that files that do not call it skip it
-    Scalar evaluate(const Mat3& F, Mat3& P, Matrix9* A, TangentKind kind = TangentKind::Projected) const {
-      Mat3 R, S;
+    template <class L = void>  // see Lazy (core/types.hpp)
+    Scalar evaluate(const Mat3& F_, Mat3& P_, Eigen::Matrix<Lazy<L>, 9, 9>* A,
+                    TangentKind kind = TangentKind::Projected) const {
+      using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+      using V3 = Eigen::Matrix<Lazy<L>, 3, 1>;
+      const M3& F = F_;
+      M3& P = P_;
+      M3 R, S;
       rotation_stretch(F, R, S);
-      const Mat3 Ss = 0.5 * (S + S.transpose());
-      const Mat3 eps = Ss - Mat3::Identity();
+      const M3 Ss = 0.5 * (S + S.transpose());
+      const M3 eps = Ss - M3::Identity();
       const Scalar tr = eps.trace();
-      P = R * (2 * mu * eps + lambda * tr * Mat3::Identity());
+      P = R * (2 * mu * eps + lambda * tr * M3::Identity());
       if (A) {
-        const Mat3 Z = Ss.trace() * Mat3::Identity() - Ss;
+        const M3 Z = Ss.trace() * M3::Identity() - Ss;
         const Scalar z = Z.trace() / 3;
-        const bool spd = Z(0, 0) > 0 && Z.topLeftCorner<2, 2>().determinant() > 0 && Z.determinant() > 1e-8 * z * z * z;
+        const bool spd = Z(0, 0) > 0 && Z.template topLeftCorner<2, 2>().determinant() > 0 && Z.determinant() > 1e-8 * z * z * z;
         if (kind == TangentKind::Exact && spd) {
-          const Mat3 Zinv = Z.inverse();
+          const M3 Zinv = Z.inverse();
           const Scalar c = lambda * tr - 2 * mu;
           for (int l = 0; l < 3; ++l)
             for (int k = 0; k < 3; ++k) {
-              Mat3 dF = Mat3::Zero();
+              M3 dF = M3::Zero();
               dF(k, l) = 1;
-              const Mat3 W = R.transpose() * dF - dF.transpose() * R;  // = hat(Z omega)
-              const Vec3 omega = Zinv * Vec3(W(2, 1), W(0, 2), W(1, 0));
-              Mat3 hat;
+              const M3 W = R.transpose() * dF - dF.transpose() * R;  // = hat(Z omega)
+              const V3 omega = Zinv * V3(W(2, 1), W(0, 2), W(1, 0));
+              M3 hat;
               hat << 0, -omega.z(), omega.y(), omega.z(), 0, -omega.x(), -omega.y(), omega.x(), 0;
-              const Mat3 dP = 2 * mu * dF + lambda * (R.transpose() * dF).trace() * R + c * (R * hat);
-              A->col(k + 3 * l) = Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>>(dP.data());
+              const M3 dP = 2 * mu * dF + lambda * (R.transpose() * dF).trace() * R + c * (R * hat);
+              A->col(k + 3 * l) = Eigen::Map<const Eigen::Matrix<Lazy<L>, 9, 1>>(dP.data());
             }
         } else {
-          *A = detail::rotated_hooke_tangent(R, mu, lambda);
+          *A = detail::rotated_hooke_tangent<L>(R, mu, lambda);
         }
       }
       return mu * eps.squaredNorm() + 0.5 * lambda * tr * tr;

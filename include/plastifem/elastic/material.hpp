@@ -51,26 +51,31 @@ struct Material {
 };
 
 /// Isotropic elasticity tensor in Voigt form (xx, yy, zz, xy, yz, zx; engineering shear).
-template <class = void>  // a template only so that files that do not call it skip it
-Eigen::Matrix<Scalar, 6, 6> voigt_elasticity(const Material& m) {
+template <class L = void>  // see Lazy (core/types.hpp)
+Eigen::Matrix<Lazy<L>, 6, 6> voigt_elasticity(const Material& m) {
+  using C6 = Eigen::Matrix<Lazy<L>, 6, 6>;
   const Scalar mu = m.mu(), la = m.lambda();
-  Eigen::Matrix<Scalar, 6, 6> C = Eigen::Matrix<Scalar, 6, 6>::Zero();
-  C.topLeftCorner<3, 3>().setConstant(la);
-  C.topLeftCorner<3, 3>().diagonal().array() += 2 * mu;
-  C.bottomRightCorner<3, 3>().diagonal().setConstant(mu);
+  C6 C = C6::Zero();
+  C.template topLeftCorner<3, 3>().setConstant(la);
+  C.template topLeftCorner<3, 3>().diagonal().array() += 2 * mu;
+  C.template bottomRightCorner<3, 3>().diagonal().setConstant(mu);
   return C;
 }
 
 /// Linear isotropic stress sigma = 2 mu eps + lambda tr(eps) I.
-template <class = void>  // a template only so that files that do not call it skip it
-Mat3 hooke(const Material& m, const Mat3& eps) {
-  return 2 * m.mu() * eps + m.lambda() * eps.trace() * Mat3::Identity();
+template <class L = void>  // see Lazy (core/types.hpp)
+Eigen::Matrix<Lazy<L>, 3, 3> hooke(const Material& m, const Mat3& eps_) {
+  using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+  const M3& eps = eps_;
+  return 2 * m.mu() * eps + m.lambda() * eps.trace() * M3::Identity();
 }
 
 /// Von Mises equivalent stress sqrt(3/2 s:s), s the deviator.
-template <class = void>  // a template only so that files that do not call it skip it
-Scalar von_mises(const Mat3& sigma) {
-  const Mat3 s = sigma - sigma.trace() / 3 * Mat3::Identity();
+template <class L = void>  // see Lazy (core/types.hpp)
+Lazy<L> von_mises(const Mat3& sigma_) {
+  using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+  const M3& sigma = sigma_;
+  const M3 s = sigma - sigma.trace() / 3 * M3::Identity();
   return std::sqrt(1.5 * s.squaredNorm());
 }
 

@@ -122,15 +122,17 @@ void add_point_contribution(const ShapeGradients<E>& G, Scalar dv, const Mat3& P
 /// dP/dF of the isotropic linear law P = 2 mu sym(H) + lambda tr(H) I in the frame rotated by R:
 /// P = R C(sym(R^T F) - I) with R held fixed (the warped corotational tangent; R = I: Hooke):
 ///   dP = mu (dF + R dF^T R) + lambda tr(R^T dF) R.
-template <class = void>  // a template only so that files that do not call it skip it
-Matrix9 rotated_hooke_tangent(const Mat3& R, Scalar mu, Scalar lambda) {
-  Matrix9 A;
+template <class L = void>  // see Lazy (core/types.hpp)
+Eigen::Matrix<Lazy<L>, 9, 9> rotated_hooke_tangent(const Mat3& R_, Scalar mu, Scalar lambda) {
+  using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+  const M3& R = R_;
+  Eigen::Matrix<Lazy<L>, 9, 9> A;
   for (int l = 0; l < 3; ++l)
     for (int k = 0; k < 3; ++k) {
-      Mat3 dF = Mat3::Zero();
+      M3 dF = M3::Zero();
       dF(k, l) = 1;
-      const Mat3 dP = mu * (dF + R * dF.transpose() * R) + lambda * (R.transpose() * dF).trace() * R;
-      A.col(k + 3 * l) = Eigen::Map<const Eigen::Matrix<Scalar, 9, 1>>(dP.data());
+      const M3 dP = mu * (dF + R * dF.transpose() * R) + lambda * (R.transpose() * dF).trace() * R;
+      A.col(k + 3 * l) = Eigen::Map<const Eigen::Matrix<Lazy<L>, 9, 1>>(dP.data());
     }
   return A;
 }
