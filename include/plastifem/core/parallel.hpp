@@ -2,8 +2,8 @@
 // parallel_for(n, threads, body): body(0) ... body(n - 1) on up to `threads` OpenMP threads
 // (0: OpenMP's default), for independent iterations that write disjoint data. Static schedule:
 // which thread runs which index does not change the result. An exception thrown by body
-// cannot leave an OpenMP region (std::terminate): the first one is kept and rethrown after the
-// loop, whose other iterations still run.
+// cannot leave an OpenMP region (std::terminate): the first one caught is kept and rethrown
+// after the loop, whose other iterations still run.
 #include <plastifem/core/types.hpp>
 
 #include <exception>

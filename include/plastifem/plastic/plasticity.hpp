@@ -14,9 +14,10 @@
 // the step took.
 //
 // sync(): re-prepares the element data of the elements whose rest nodes differ from the table's
-// (copy-on-write per element, assembly/element_data.hpp; the elements in parallel), and hands the body the rest
-// displacement x - X (for constant-tangent models, f = K (u - (x - X))). A failed or cut step
-// can leave the data at a sub-step's table; the solver syncs back to the committed one.
+// (copy-on-write per element, assembly/element_data.hpp; the elements in parallel), and hands
+// the body the rest displacement x - X (for constant-tangent models, f = K (u - (x - X))). A
+// failed or cut step can leave the data at a sub-step's table; the solver syncs back to the
+// committed one.
 #include <plastifem/assembly/discretization.hpp>
 #include <plastifem/plastic/flow.hpp>
 #include <plastifem/plastic/fusion.hpp>
@@ -205,10 +206,9 @@ class Plasticity {
     return rep;
   }
 
-  /// Brings the body's element data to the table's rest shapes (see the file comment).
-  /// Returns whether anything changed.
-  /// The element data are prepared on `threads` threads (every flowing element's, in every
-  /// step: a third of the plastic work).
+  /// Brings the body's element data to the table's rest shapes (see the file comment), the
+  /// elements prepared on `threads` threads (every flowing element, in every step: a third of
+  /// the plastic work). Returns whether anything changed.
   template <bool Enriched>
   bool sync(Discretization<E, Elastic, Enriched>& body, const PlasticTable& table, int threads) {
     if (table.version == synced_version_) return false;
