@@ -14,17 +14,17 @@
 // the step took.
 //
 // sync(): re-prepares the element data of the elements whose rest nodes differ from the table's
-// (copy-on-write per element, assembly/element_data.hpp; the elements in parallel), and hands
+// (copy-on-write per element, assembly/shared_by_shape.hpp; the elements in parallel), and hands
 // the body the rest displacement x - X (for constant-tangent models, f = K (u - (x - X))). A
 // failed or cut step can leave the data at a sub-step's table; the solver syncs back to the
 // committed one.
 #include <plastifem/assembly/discretization.hpp>
+#include <plastifem/assembly/shared_by_shape.hpp>
 #include <plastifem/plastic/flow.hpp>
 #include <plastifem/plastic/fusion.hpp>
 #include <plastifem/plastic/params.hpp>
 #include <plastifem/plastic/table.hpp>
 
-#include <map>
 #include <optional>
 #include <vector>
 
@@ -65,19 +65,8 @@ class Plasticity {
     }
     // Flow gradients, shared by translated copies (every cell of a structured grid) until a
     // rest shape changes, as the element data are.
-    grads_.clear(), grad_of_.assign(ne, 0), grad_users_.clear();
-    {
-      std::map<std::vector<Scalar>, std::uint32_t> shape_index;
-      for (Index e = 0; e < ne; ++e) {
-        const ElementNodes<E> X = mesh.element_nodes(e);
-        const ElementNodes<E> rel = X.colwise() - X.col(0);
-        auto [it, inserted] = shape_index.try_emplace(std::vector<Scalar>(rel.data(), rel.data() + rel.size()),
-                                                      static_cast<std::uint32_t>(grads_.size()));
-        if (inserted) grads_.emplace_back(points_, X), grad_users_.push_back(0);
-        grad_of_[e] = it->second;
-        ++grad_users_[it->second];
-      }
-    }
+    grads_ = SharedByShape<E, typename Flow::Gradients>(
+        mesh, [&](const ElementNodes<E>& X) { return typename Flow::Gradients(points_, X); });
     z_.assign(ne, ElementNodes<E>::Zero());
     result_.assign(ne, FlowResult::Unchanged);
     changed_.assign(ne, 0);
@@ -136,9 +125,9 @@ class Plasticity {
           ElementNodes<E> X, x;
           for (int a = 0; a < N; ++a) x.col(a) = mesh.node(c[a]) + u.template segment<3>(3 * c[a]);
           const auto en = entries(table, e);
-          if (!Flow::may_flow(grads_[grad_of_[e]], *law_, body.material(), prm, x, table.volume[e], en)) return;
+          if (!Flow::may_flow(grads_[e], *law_, body.material(), prm, x, table.volume[e], en)) return;
           for (int a = 0; a < N; ++a) X.col(a) = rest.template segment<3>(3 * c[a]);
-          result_[e] = Flow::run(points_, grads_[grad_of_[e]], *law_, body.material(), prm, dt, X, x, V0_[e],
+          result_[e] = Flow::run(points_, grads_[e], *law_, body.material(), prm, dt, X, x, V0_[e],
                                  table.volume[e], q0_[e], en, entries(out_, e), z_[e], reports_[e]);
         },
         threads);
@@ -227,19 +216,7 @@ class Plasticity {
     }
     auto rest_of = [&](Index e) { return element_of(mesh, e, table.rest); };
     body.set_rest_shapes(moved_elements_, rest_of, threads);  // checked by the update that proposed them
-    // The elements' own flow gradients (copy-on-write, as the element data).
-    for (Index e : moved_elements_) {
-      const std::uint32_t old = grad_of_[e];
-      if (grad_users_[old] == 1) continue;
-      --grad_users_[old];
-      grad_of_[e] = static_cast<std::uint32_t>(grads_.size());
-      grads_.emplace_back();
-      grad_users_.push_back(1);
-    }
-    parallel_for(static_cast<Index>(moved_elements_.size()), threads, [&](Index k) {
-      const Index e = moved_elements_[static_cast<size_t>(k)];
-      grads_[grad_of_[e]] = typename Flow::Gradients(points_, rest_of(e));
-    });
+    grads_.reshape(moved_elements_, [&](Index e) { return typename Flow::Gradients(points_, rest_of(e)); }, threads);
     rest_u_ = table.rest - Eigen::Map<const Vector>(mesh.nodes().data(), 3 * n);
     body.set_rest_displacement(rest_u_);
     synced_rest_ = table.rest;
@@ -277,8 +254,7 @@ class Plasticity {
   }
 
   typename Flow::Points points_;
-  std::vector<typename Flow::Gradients> grads_;  ///< one per distinct rest shape
-  std::vector<std::uint32_t> grad_of_, grad_users_;
+  SharedByShape<E, typename Flow::Gradients> grads_;
   std::optional<typename Elastic::Law> law_;
   std::vector<Scalar> V0_, h_, q0_;
   std::vector<ElementNodes<E>> z_;
