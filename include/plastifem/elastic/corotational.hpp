@@ -40,6 +40,7 @@
 // inverted or collapsed point, where the polar factor is not differentiable) the point keeps
 // its warped contribution.
 #include <plastifem/core/polar.hpp>
+#include <plastifem/core/rotation.hpp>
 #include <plastifem/elastic/small_strain_law.hpp>
 
 namespace plastifem {
@@ -129,7 +130,7 @@ using CorotationalMeanDilatation = CorotationalPerElementT<Volumetric::MeanDilat
 
 template <FiniteElement E>
 struct CorotationalData {
-  QuadraturePoints<E> points;  ///< with L = sum_q dv_q g_qa . g_qb (rotation-free part)
+  PointMajorQuadraturePoints<E> points;  ///< with L = sum_q dv_q g_qa . g_qb (rotation-free part)
   ShapeGradients<E> G_centre;
   Scalar mu, lambda;
 };
@@ -144,7 +145,7 @@ struct Corotational {
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
     ElementData<E> d;
-    d.points = prepare_points<E>(X0);
+    d.points = prepare_point_major<E>(X0);
     d.G_centre = physical_gradient<E>(X0, reference_centre<E>());
     d.mu = m.mu();
     d.lambda = m.lambda();
@@ -196,9 +197,7 @@ struct Corotational {
               dF(k, l) = 1;
               const M3 W = R.transpose() * dF - dF.transpose() * R;  // = hat(Z omega)
               const V3 omega = Zinv * V3(W(2, 1), W(0, 2), W(1, 0));
-              M3 hat;
-              hat << 0, -omega.z(), omega.y(), omega.z(), 0, -omega.x(), -omega.y(), omega.x(), 0;
-              const M3 dP = 2 * mu * dF + lambda * (R.transpose() * dF).trace() * R + c * (R * hat);
+              const M3 dP = 2 * mu * dF + lambda * (R.transpose() * dF).trace() * R + c * (R * hat(omega));
               A->col(k + 3 * l) = Eigen::Map<const Eigen::Matrix<Lazy<L>, 9, 1>>(dP.data());
             }
         } else {
@@ -225,15 +224,14 @@ struct Corotational {
     ElementMatrix<E> Kc;
     Scalar W = 0;
     for (int q0 = 0; q0 < ps.size(); q0 += Q) {
-      QuadraturePoints<E>& c = d.points;
+      PointMajorQuadraturePoints<E>& c = d.points;
       for (int k = 0; k < Q; ++k) {
         const int q = std::min(q0 + k, ps.size() - 1);  // a padding point repeats the last one
-        c.G[k] = ps.G[q];
-        c.dv[k] = c.dv_points(k) = q0 + k < ps.size() ? ps.dv[q] : 0.0;
+        c.dv(k) = q0 + k < ps.size() ? ps.dv[q] : 0.0;
         for (int a = 0; a < N; ++a)
-          for (int j = 0; j < 3; ++j) c.GT(k, 3 * a + j) = c.G[k](a, j);
+          for (int j = 0; j < 3; ++j) c.GT(k, 3 * a + j) = ps.G[q](a, j);
       }
-      if (K) c.L = rotation_free_tangent<E>(c.GT, c.dv_points);
+      if (K) c.L = rotation_free_tangent<E>(c.GT, c.dv);
       W += evaluate<E>(d, x, fc, K ? &Kc : nullptr, kind);
       f += fc;
       if (K) *K += Kc;
@@ -259,7 +257,7 @@ struct Corotational {
     constexpr int N = E::num_nodes, Q = QuadraturePoints<E>::size;
     using PA = PointArray<Q>;
     const auto& GT = d.points.GT;  // GT(q, 3a + j) = g_qa[j]
-    const PA& dv = d.points.dv_points;
+    const PA& dv = d.points.dv;
     auto g = [&](int a, int j) { return GT.col(3 * a + j).array(); };
     // F(i, j) = sum_a x(i, a) g_a[j], at every point.
     PointMat3<Q> F, R;

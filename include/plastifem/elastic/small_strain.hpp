@@ -101,23 +101,31 @@ SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Materia
   return d;
 }
 
-/// Per-point data of the full-integration (stiffness) rule: dN/dX and w_q det J_q, for models
-/// evaluated at quadrature points.
+/// Per-point data of the full-integration (stiffness) rule, for models evaluated point by
+/// point (the hyperelastic family): dN/dX and w_q det J_q at each point.
 template <FiniteElement E>
 struct QuadraturePoints {
   static constexpr int size = decltype(E::template quadrature<E::stiffness_degree>())::size;
   std::array<ShapeGradients<E>, size> G;  ///< dN/dX at each point
   std::array<Scalar, size> dv;            ///< w_q det J_q
-  /// The same gradients point-major, for kernels batched over the points (SIMD lanes):
-  /// GT(q, 3a + j) = dN_a/dX_j at point q; and dv as an array over the points.
-  Eigen::Matrix<Scalar, size, 3 * E::num_nodes> GT;
-  Eigen::Array<Scalar, size, 1> dv_points;
   /// L_ab = sum_q dv_q g_qa . g_qb: the rotation-free part of the corotational and Neo-Hookean
   /// tangents, a rest-shape quantity.
   Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;
 };
 
-/// L_ab = sum_q dv_q g_qa . g_qb from the point-major gradients GT (QuadraturePoints::GT),
+/// The same, point-major, for kernels batched over the points (SIMD lanes: the corotational
+/// model). Each model keeps only its own layout: a plastic or unstructured body has one entry
+/// per element, which every assembly streams from memory (Hex8 corotational 3.9 -> 2.3 KB).
+template <FiniteElement E>
+struct PointMajorQuadraturePoints {
+  static constexpr int size = QuadraturePoints<E>::size;
+  /// GT(q, 3a + j) = dN_a/dX_j at point q
+  Eigen::Matrix<Scalar, size, 3 * E::num_nodes> GT;
+  Eigen::Array<Scalar, size, 1> dv;                   ///< w_q det J_q
+  Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> L;  ///< as QuadraturePoints::L
+};
+
+/// L_ab = sum_q dv_q g_qa . g_qb from the point-major gradients GT (PointMajorQuadraturePoints::GT),
 /// symmetric bit for bit (the lower triangle mirrored). Loops over contiguous point columns:
 /// Eigen's scaled outer-product expression cost more to compile than the rest of the
 /// preparation, and ran no faster.
@@ -138,20 +146,40 @@ Eigen::Matrix<Scalar, E::num_nodes, E::num_nodes> rotation_free_tangent(
   return L;
 }
 
+/// The point-major data of rest shape X0 (PointMajorQuadraturePoints).
+template <FiniteElement E>
+PointMajorQuadraturePoints<E> prepare_point_major(const ElementNodes<E>& X0) {
+  PointMajorQuadraturePoints<E> p;
+  const auto q = E::template quadrature<E::stiffness_degree>();
+  const auto& dN = quadrature_gradients<E, E::stiffness_degree>();
+  for (int k = 0; k < q.size; ++k) {
+    Scalar det_J;
+    const ShapeGradients<E> G = physical_gradient_at<E>(X0, dN[k], &det_J);
+    p.dv(k) = q.weights[k] * det_J;
+    for (int a = 0; a < E::num_nodes; ++a)
+      for (int j = 0; j < 3; ++j) p.GT(k, 3 * a + j) = G(a, j);
+  }
+  p.L = rotation_free_tangent<E>(p.GT, p.dv);
+  return p;
+}
+
+/// The per-point data of rest shape X0 (QuadraturePoints); its L is prepare_point_major's, bit
+/// for bit.
 template <FiniteElement E>
 QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
   QuadraturePoints<E> p;
   const auto q = E::template quadrature<E::stiffness_degree>();
   const auto& dN = quadrature_gradients<E, E::stiffness_degree>();
+  Eigen::Matrix<Scalar, QuadraturePoints<E>::size, 3 * E::num_nodes> GT;
+  Eigen::Array<Scalar, QuadraturePoints<E>::size, 1> dv;
   for (int k = 0; k < q.size; ++k) {
     Scalar det_J;
     p.G[k] = physical_gradient_at<E>(X0, dN[k], &det_J);
-    p.dv[k] = q.weights[k] * det_J;
-    p.dv_points(k) = p.dv[k];
+    p.dv[k] = dv(k) = q.weights[k] * det_J;
     for (int a = 0; a < E::num_nodes; ++a)
-      for (int j = 0; j < 3; ++j) p.GT(k, 3 * a + j) = p.G[k](a, j);
+      for (int j = 0; j < 3; ++j) GT(k, 3 * a + j) = p.G[k](a, j);
   }
-  p.L = rotation_free_tangent<E>(p.GT, p.dv_points);
+  p.L = rotation_free_tangent<E>(GT, dv);
   return p;
 }
 
