@@ -201,6 +201,68 @@ TEST_CASE("flow stress: the Neo-Hookean closed form S = mu (I - C^-1) + lambda l
   CHECK_FALSE(law.energy.second_piola(Mat3::Zero(), S));
 }
 
+TEST_CASE("yield check: the Neo-Hookean measure at all Gauss points at once is the point-wise one", "[plasticity]") {
+  // may_flow reads |dev S|^2 of the Neo-Hookean energy at an element's Gauss points in one
+  // batch (one SIMD lane per point); run() computes the stress point by point. The two agree to
+  // round-off (1e-9 of |dev S|^2: the deviator of cof C cancels where the distortion is small
+  // against the volume change, here down to 1e-2), NaN where J <= 0.
+  const Material m{3000, 0.45, 1};
+  const NeoHookean::Law law(m);
+  static_assert(requires { law.energy.template deviatoric_second_piola_norm2<8>(PointMat3<8>{}); },
+                "the Neo-Hookean check must take the batched path");
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<Scalar> u(-0.4, 0.4);
+  for (int trial = 0; trial < 200; ++trial) {
+    PointMat3<8> F;
+    std::array<Mat3, 8> Fq;
+    for (int q = 0; q < 8; ++q) {
+      Fq[q] = Mat3::Identity();
+      for (int i = 0; i < 9; ++i) Fq[q](i % 3, i / 3) += u(rng) * (trial % 2 ? 1.0 : 0.05);
+      if (trial % 10 == 0 && q == 3) Fq[q].col(2) *= -1;  // an inverted point
+      for (int i = 0; i < 9; ++i) F[i][q] = Fq[q](i % 3, i / 3);
+    }
+    const PointArray<8> s2 = law.energy.deviatoric_second_piola_norm2<8>(F);
+    for (int q = 0; q < 8; ++q) {
+      Mat3 dev = Mat3::Zero();
+      if (!plastic::deviatoric_flow_stress<NeoHookean>(law, m, Fq[q], dev)) {
+        CHECK(std::isnan(s2[q]));
+        continue;
+      }
+      CHECK(std::abs(s2[q] - dev.squaredNorm()) <= 1e-9 * dev.squaredNorm());
+    }
+  }
+
+  // The check's decision: an element whose largest point stress is 0.1% below the yield stress
+  // does not flow, 0.1% above does, and one within 1e-9 of it goes to run() (conservative);
+  // the point-wise path of the other energies decides the same.
+  const auto X = bar_mesh<Hex8>(1, 1, 1).element_nodes(0);
+  const auto check = [&]<class Model>() {
+    using Flow = plastic::ElementFlow<Hex8, Model, true>;
+    const typename Model::Law model_law(m);
+    const typename Flow::Points pts;
+    const typename Flow::Gradients grad(pts, X);
+    ElementNodes<Hex8> x = X;
+    for (int a = 0; a < 8; ++a) x.col(a) = Vec3(1.1 * X(0, a) + 0.05 * X(1, a), 0.97 * X(1, a), X(2, a) + 0.02 * X(0, a) * X(1, a));
+    Scalar s_max = 0;
+    for (int k = 0; k < Flow::P; ++k) {
+      Mat3 dev = Mat3::Zero();
+      REQUIRE(plastic::deviatoric_flow_stress<Model>(model_law, m, grad.gauss_gradient(x, k), dev));
+      s_max = std::max(s_max, plastic::von_mises_norm(dev));
+    }
+    PlasticParams prm;
+    std::array<Scalar, Flow::P> tau;
+    const plastic::ElementPlasticEntries en{tau.data(), nullptr, nullptr, nullptr};
+    for (const auto& [factor, flows] : {std::pair{1.001, false}, std::pair{0.999, true}, std::pair{1 + 1e-9, true}}) {
+      tau.fill(factor * s_max);
+      INFO(Model::name << " tau = " << factor << " |s|max");
+      if (factor == 1 + 1e-9 && !std::is_same_v<Model, NeoHookean>) continue;  // exact there
+      CHECK(Flow::may_flow(grad, model_law, m, prm, x, 1.0, en) == flows);
+    }
+  };
+  check.template operator()<NeoHookean>();
+  check.template operator()<NeoHookeanAbaqus>();
+}
+
 TEST_CASE("fusion: compatible proposals are reproduced exactly, a one-pass average is not", "[plasticity]") {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 2, 2);
   plastic::MaterialFusion<Hex8> fusion;

@@ -95,6 +95,23 @@ struct BasicNeoHookeanEnergy {
     S.diagonal().array() += mu;
     return true;
   }
+  /// |dev S|^2 for that S at Q points at once (the plastic yield check, plastic/flow.hpp; one
+  /// SIMD lane per point, F component-wise): dev S = (lambda ln J - mu) dev(C^-1)
+  /// = (lambda ln J - mu) dev(cof C) / J^2. NaN where J <= 0.
+  template <int Q>
+  PointArray<Q> deviatoric_second_piola_norm2(const PointMat3<Q>& F) const {
+    using PA = PointArray<Q>;
+    const PA J = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) + F[6] * (F[1] * F[5] - F[4] * F[2]);
+    auto dot = [&](int c, int d) -> PA { return F[3 * c] * F[3 * d] + F[3 * c + 1] * F[3 * d + 1] + F[3 * c + 2] * F[3 * d + 2]; };
+    const PA C00 = dot(0, 0), C11 = dot(1, 1), C22 = dot(2, 2), C01 = dot(0, 1), C02 = dot(0, 2), C12 = dot(1, 2);
+    const PA K00 = C11 * C22 - C12 * C12, K11 = C00 * C22 - C02 * C02, K22 = C00 * C11 - C01 * C01;
+    const PA K01 = C02 * C12 - C01 * C22, K02 = C01 * C12 - C02 * C11, K12 = C01 * C02 - C00 * C12;
+    const PA mean = (K00 + K11 + K22) / 3;
+    const PA dev2 = (K00 - mean).square() + (K11 - mean).square() + (K22 - mean).square() +
+                    2 * (K01.square() + K02.square() + K12.square());
+    const PA a = (lambda * J.max(PA::Constant(std::numeric_limits<Scalar>::min())).log() - mu) / (J * J);
+    return (J > 0).select(a.square() * dev2, PA::Constant(std::numeric_limits<Scalar>::quiet_NaN()));
+  }
 };
 using NeoHookeanEnergy = BasicNeoHookeanEnergy<>;
 

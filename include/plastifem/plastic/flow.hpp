@@ -240,21 +240,54 @@ Mat3 gradient_at(const ElementNodes<E>& X, const ElementNodes<E>& x, const Eigen
 
 /// The rest-space shape gradients of one rest shape at the points the flow reads, so that each
 /// F is one product x G: the blended gradients (dN/dX(node a) + dN/dX(centre)) / 2 of the N
-/// nodes (F x G_a is the blended Fbar_a), the centre's dN/dX (index N), and for the Gauss flow
-/// the Q Gauss points' after them.
+/// nodes (F x G_a is the blended Fbar_a) and the centre's dN/dX (index N); for the Gauss flow
+/// also the Q Gauss points' dN/dX, point-major (GT(q, 3a + j) = dN_a/dX_j at point q), so that
+/// the yield check computes F at all points at once (one SIMD lane per point).
 template <FiniteElement E, bool Gauss>
 struct FlowGradients {
   static constexpr int N = E::num_nodes;
   static constexpr int Q = decltype(E::template quadrature<E::stiffness_degree>())::size;
-  static constexpr int size = N + 1 + (Gauss ? Q : 0);
-  std::array<ShapeGradients<E>, size> G;
+  std::array<ShapeGradients<E>, N + 1> G;
+  struct None {};
+  std::conditional_t<Gauss, Eigen::Matrix<Scalar, Q, 3 * N>, None> GT;
 
   FlowGradients() = default;
   FlowGradients(const FlowPoints<E, Gauss>& pts, const ElementNodes<E>& X) {
     for (int a = 0; a <= N; ++a) G[a] = physical_gradient_at<E>(X, pts.dN_nodes[a]);
     for (int a = 0; a < N; ++a) G[a] = 0.5 * (G[a] + G[N]);
     if constexpr (Gauss)
-      for (int g = 0; g < Q; ++g) G[N + 1 + g] = physical_gradient_at<E>(X, pts.dN_gauss[g]);
+      for (int g = 0; g < Q; ++g) {
+        const ShapeGradients<E> Gg = physical_gradient_at<E>(X, pts.dN_gauss[g]);
+        for (int a = 0; a < N; ++a)
+          for (int j = 0; j < 3; ++j) GT(g, 3 * a + j) = Gg(a, j);
+      }
+  }
+
+  /// F = x dN/dX at Gauss point g (the Gauss flow).
+  Mat3 gauss_gradient(const ElementNodes<E>& x, int g) const
+    requires Gauss
+  {
+    Mat3 F;
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) {
+        Scalar s = 0;
+        for (int a = 0; a < N; ++a) s += x(i, a) * GT(g, 3 * a + j);
+        F(i, j) = s;
+      }
+    return F;
+  }
+  /// F at every Gauss point at once, component-wise: F[i + 3j](g) = F_g(i, j).
+  PointMat3<Q> gauss_gradients(const ElementNodes<E>& x) const
+    requires Gauss
+  {
+    PointMat3<Q> F;
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) {
+        PointArray<Q> s = x(i, 0) * GT.col(j).array();
+        for (int a = 1; a < N; ++a) s += x(i, a) * GT.col(3 * a + j).array();
+        F[i + 3 * j] = s;
+      }
+    return F;
   }
 };
 
@@ -346,12 +379,24 @@ class ElementFlow {
     if (prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance) return true;
     if (!prm.stretch_active()) return false;
     if constexpr (gauss) {
-      for (int k = 0; k < P; ++k) {
-        Mat3 dev;
-        if (!deviatoric_flow_stress<Elastic>(law, m, times<E>(x, grad.G[N + 1 + k]), dev)) return true;
-        if (von_mises_norm(prm.stress_scale * dev) > en.tau[k]) return true;
+      if constexpr (requires { law.energy.template deviatoric_second_piola_norm2<P>(grad.gauss_gradients(x)); }) {
+        // All points at once (the energy's closed form, one SIMD lane per point). Conservative
+        // by 1e-6 of tau^2: the batched arithmetic differs from run()'s in round-off, amplified
+        // where the deviator is small against the whole stress (up to 5e-11 relative on random
+        // F); a point this close to yield goes to run(), which decides.
+        const PointArray<P> s2 =
+            (1.5 * prm.stress_scale * prm.stress_scale) * law.energy.template deviatoric_second_piola_norm2<P>(grad.gauss_gradients(x));
+        for (int k = 0; k < P; ++k)
+          if (!(s2[k] <= en.tau[k] * en.tau[k] * (1 - 1e-6))) return true;  // NaN: undefined, run() counts it
+        return false;
+      } else {
+        for (int k = 0; k < P; ++k) {
+          Mat3 dev;
+          if (!deviatoric_flow_stress<Elastic>(law, m, grad.gauss_gradient(x, k), dev)) return true;
+          if (von_mises_norm(prm.stress_scale * dev) > en.tau[k]) return true;
+        }
+        return false;
       }
-      return false;
     } else {
       (void)law;
       const Scalar c = 1.5 * (2 * m.mu() * prm.stress_scale) * (2 * m.mu() * prm.stress_scale);
@@ -406,7 +451,9 @@ class ElementFlow {
     if (stretch) {
       bool defined = true;  // the stress at the last point that computed one
       for (int k = 0; k < P; ++k) {
-        const Mat3 F = gauss ? times<E>(x, grad.G[N + 1 + k]) : Fbar[k];
+        Mat3 F;
+        if constexpr (gauss) F = grad.gauss_gradient(x, k);
+        else F = Fbar[k];
         if (!one_gradient || k == 0) {
           Mat3 dev;
           defined = deviatoric_flow_stress<Elastic>(law, m, F, dev);
