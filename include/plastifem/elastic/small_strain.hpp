@@ -163,23 +163,18 @@ PointMajorQuadraturePoints<E> prepare_point_major(const ElementNodes<E>& X0) {
   return p;
 }
 
-/// The per-point data of rest shape X0 (QuadraturePoints); its L is prepare_point_major's, bit
-/// for bit.
+/// The per-point data of rest shape X0 (QuadraturePoints): prepare_point_major's, laid out per
+/// point.
 template <FiniteElement E>
 QuadraturePoints<E> prepare_points(const ElementNodes<E>& X0) {
+  const PointMajorQuadraturePoints<E> m = prepare_point_major<E>(X0);
   QuadraturePoints<E> p;
-  const auto q = E::template quadrature<E::stiffness_degree>();
-  const auto& dN = quadrature_gradients<E, E::stiffness_degree>();
-  Eigen::Matrix<Scalar, QuadraturePoints<E>::size, 3 * E::num_nodes> GT;
-  Eigen::Array<Scalar, QuadraturePoints<E>::size, 1> dv;
-  for (int k = 0; k < q.size; ++k) {
-    Scalar det_J;
-    p.G[k] = physical_gradient_at<E>(X0, dN[k], &det_J);
-    p.dv[k] = dv(k) = q.weights[k] * det_J;
+  for (int k = 0; k < QuadraturePoints<E>::size; ++k) {
+    p.dv[k] = m.dv(k);
     for (int a = 0; a < E::num_nodes; ++a)
-      for (int j = 0; j < 3; ++j) GT(k, 3 * a + j) = p.G[k](a, j);
+      for (int j = 0; j < 3; ++j) p.G[k](a, j) = m.GT(k, 3 * a + j);
   }
-  p.L = rotation_free_tangent<E>(GT, dv);
+  p.L = m.L;
   return p;
 }
 
