@@ -40,6 +40,7 @@
 // inverted or collapsed point, where the polar factor is not differentiable) the point keeps
 // its warped contribution.
 #include <plastifem/core/polar.hpp>
+#include <plastifem/core/rotation.hpp>
 #include <plastifem/elastic/small_strain_law.hpp>
 
 namespace plastifem {
@@ -196,11 +197,7 @@ struct Corotational {
               dF(k, l) = 1;
               const M3 W = R.transpose() * dF - dF.transpose() * R;  // = hat(Z omega)
               const V3 omega = Zinv * V3(W(2, 1), W(0, 2), W(1, 0));
-              // hat(omega), written here: core/rotation.hpp's hat() would bring that header's
-              // Eigen code into every file with the umbrella (+32 MB of g++ on issue 14's file).
-              M3 hat;
-              hat << 0, -omega.z(), omega.y(), omega.z(), 0, -omega.x(), -omega.y(), omega.x(), 0;
-              const M3 dP = 2 * mu * dF + lambda * (R.transpose() * dF).trace() * R + c * (R * hat);
+              const M3 dP = 2 * mu * dF + lambda * (R.transpose() * dF).trace() * R + c * (R * hat<L>(omega));
               A->col(k + 3 * l) = Eigen::Map<const Eigen::Matrix<Lazy<L>, 9, 1>>(dP.data());
             }
         } else {

@@ -31,8 +31,9 @@ namespace plastifem {
 namespace detail {
 
 /// A += scale d(cof F)/dF, with d(cof_ij)/dF_kl = sum_mn e_ikm e_jln F_mn (the Hessian of J).
-template <class = void>  // a template only so that files that do not call it skip it
-void add_cofactor_derivative(Matrix9& A, const Mat3& F, Scalar scale) {
+template <class L = void>  // see Lazy (core/types.hpp)
+void add_cofactor_derivative(Eigen::Matrix<Lazy<L>, 9, 9>& A, const Mat3& F_, Scalar scale) {
+  const Eigen::Matrix<Lazy<L>, 3, 3>& F = F_;
   auto eps = [](int p, int q, int r) { return static_cast<Scalar>((p - q) * (q - r) * (r - p)) / 2; };
   for (int l = 0; l < 3; ++l)
     for (int k = 0; k < 3; ++k)

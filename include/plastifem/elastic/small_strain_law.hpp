@@ -23,24 +23,36 @@ struct SmallStrainLaw {
   SmallStrainLaw() = default;
   explicit SmallStrainLaw(const Material& m) : mu(m.mu()), lambda(m.lambda()) {}
 
+  /// The small strain in the frame rotated by R: eps = sym(R^T F) - I.
+  template <class L = void>  // see Lazy (core/types.hpp)
+  static Eigen::Matrix<Lazy<L>, 3, 3> strain(const Mat3& F_, const Mat3& R_) {
+    using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+    const M3 &F = F_, &R = R_;
+    const M3 S = R.transpose() * F;
+    return 0.5 * (S + S.transpose()) - M3::Identity();
+  }
   /// psi, P and A at F in the frame rotated by R (R = I: plain small strain).
-  template <class = void>  // a template only so that files that do not call it skip it
-  Scalar evaluate(const Mat3& F, const Mat3& R, Mat3& P, Matrix9* A) const {
-    const Mat3 S = R.transpose() * F;
-    const Mat3 eps = 0.5 * (S + S.transpose()) - Mat3::Identity();
+  template <class L = void>  // see Lazy (core/types.hpp)
+  Scalar evaluate(const Mat3& F, const Mat3& R_, Mat3& P_, Eigen::Matrix<Lazy<L>, 9, 9>* A) const {
+    using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+    const M3& R = R_;
+    M3& P = P_;
+    const M3 eps = strain<L>(F, R);
     const Scalar tr = eps.trace();
-    P = R * (2 * mu * eps + lambda * tr * Mat3::Identity());
-    if (A) *A = detail::rotated_hooke_tangent(R, mu, lambda);
+    P = R * (2 * mu * eps + lambda * tr * M3::Identity());
+    if (A) *A = detail::rotated_hooke_tangent<L>(R, mu, lambda);
     return mu * eps.squaredNorm() + 0.5 * lambda * tr * tr;
   }
   /// The deviatoric part alone (mean-dilatation models): psi = mu dev(eps):dev(eps).
-  template <class = void>  // a template only so that files that do not call it skip it
-  Scalar evaluate_deviatoric(const Mat3& F, const Mat3& R, Mat3& P, Matrix9* A) const {
-    const Mat3 S = R.transpose() * F;
-    const Mat3 eps = 0.5 * (S + S.transpose()) - Mat3::Identity();
-    const Mat3 dev = eps - eps.trace() / 3 * Mat3::Identity();
+  template <class L = void>  // see Lazy (core/types.hpp)
+  Scalar evaluate_deviatoric(const Mat3& F, const Mat3& R_, Mat3& P_, Eigen::Matrix<Lazy<L>, 9, 9>* A) const {
+    using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
+    const M3& R = R_;
+    M3& P = P_;
+    const M3 eps = strain<L>(F, R);
+    const M3 dev = eps - eps.trace() / 3 * M3::Identity();
     P = R * (2 * mu * dev);
-    if (A) *A = detail::rotated_hooke_tangent(R, mu, -2 * mu / 3);
+    if (A) *A = detail::rotated_hooke_tangent<L>(R, mu, -2 * mu / 3);
     return mu * dev.squaredNorm();
   }
 };

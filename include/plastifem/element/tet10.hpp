@@ -38,36 +38,38 @@ struct Tet10 : TetrahedronQuadrature {
   using ShapeGradient = Eigen::Matrix<Scalar, num_nodes, 3>;
   using NodeMatrix = Eigen::Matrix<Scalar, 3, num_nodes>;
 
-  template <class = void>  // a template only so that files that do not call it skip it
-  static NodeMatrix reference_nodes() {
-    NodeMatrix X;
-    X.leftCols<4>() << 0, 1, 0, 0,
+  template <class L = void>  // see Lazy (core/types.hpp)
+  static Eigen::Matrix<Lazy<L>, 3, num_nodes> reference_nodes() {
+    Eigen::Matrix<Lazy<L>, 3, num_nodes> X;
+    X.template leftCols<4>() << 0, 1, 0, 0,
                        0, 0, 1, 0,
                        0, 0, 0, 1;
     for (int k = 0; k < 6; ++k) X.col(4 + k) = 0.5 * (X.col(edges[k][0]) + X.col(edges[k][1]));
     return X;
   }
 
-  template <class = void>  // a template only so that files that do not call it skip it
-  static ShapeVector shape(const Vec3& p) {
-    const Scalar L[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
-    ShapeVector N;
-    for (int i = 0; i < 4; ++i) N[i] = L[i] * (2.0 * L[i] - 1.0);
-    for (int k = 0; k < 6; ++k) N[4 + k] = 4.0 * L[edges[k][0]] * L[edges[k][1]];
+  template <class L = void>  // see Lazy (core/types.hpp)
+  static Eigen::Matrix<Lazy<L>, num_nodes, 1> shape(const Vec3& p_) {
+    const Eigen::Matrix<Lazy<L>, 3, 1>& p = p_;
+    const Scalar l[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
+    Eigen::Matrix<Lazy<L>, num_nodes, 1> N;
+    for (int i = 0; i < 4; ++i) N[i] = l[i] * (2.0 * l[i] - 1.0);
+    for (int k = 0; k < 6; ++k) N[4 + k] = 4.0 * l[edges[k][0]] * l[edges[k][1]];
     return N;
   }
 
-  template <class = void>  // a template only so that files that do not call it skip it
-  static ShapeGradient gradient(const Vec3& p) {
-    const Scalar L[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
+  template <class L = void>  // see Lazy (core/types.hpp)
+  static Eigen::Matrix<Lazy<L>, num_nodes, 3> gradient(const Vec3& p_) {
+    const Eigen::Matrix<Lazy<L>, 3, 1>& p = p_;
+    const Scalar l[4] = {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
     // dL_i/dx: rows of the Tet4 gradient.
     const Scalar dL[4][3] = {{-1, -1, -1}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-    ShapeGradient G;
+    Eigen::Matrix<Lazy<L>, num_nodes, 3> G;
     for (int i = 0; i < 4; ++i)
-      for (int d = 0; d < 3; ++d) G(i, d) = (4.0 * L[i] - 1.0) * dL[i][d];
+      for (int d = 0; d < 3; ++d) G(i, d) = (4.0 * l[i] - 1.0) * dL[i][d];
     for (int k = 0; k < 6; ++k) {
       const int i = edges[k][0], j = edges[k][1];
-      for (int d = 0; d < 3; ++d) G(4 + k, d) = 4.0 * (dL[i][d] * L[j] + L[i] * dL[j][d]);
+      for (int d = 0; d < 3; ++d) G(4 + k, d) = 4.0 * (dL[i][d] * l[j] + l[i] * dL[j][d]);
     }
     return G;
   }

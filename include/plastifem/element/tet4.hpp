@@ -37,21 +37,24 @@ struct Tet4 : TetrahedronQuadrature {
   using ShapeGradient = Eigen::Matrix<Scalar, num_nodes, 3>;
   using NodeMatrix = Eigen::Matrix<Scalar, 3, num_nodes>;
 
-  template <class = void>  // a template only so that files that do not call it skip it
-  static NodeMatrix reference_nodes() {
-    NodeMatrix X;
+  template <class L = void>  // see Lazy (core/types.hpp)
+  static Eigen::Matrix<Lazy<L>, 3, num_nodes> reference_nodes() {
+    Eigen::Matrix<Lazy<L>, 3, num_nodes> X;
     X << 0, 1, 0, 0,
          0, 0, 1, 0,
          0, 0, 0, 1;
     return X;
   }
 
-  template <class = void>  // a template only so that files that do not call it skip it
-  static ShapeVector shape(const Vec3& p) { return {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()}; }
+  template <class L = void>  // see Lazy (core/types.hpp)
+  static Eigen::Matrix<Lazy<L>, num_nodes, 1> shape(const Vec3& p_) {
+    const Eigen::Matrix<Lazy<L>, 3, 1>& p = p_;
+    return {1.0 - p.x() - p.y() - p.z(), p.x(), p.y(), p.z()};
+  }
 
-  template <class = void>  // a template only so that files that do not call it skip it
-  static ShapeGradient gradient(const Vec3& /*p*/) {
-    ShapeGradient G;
+  template <class L = void>  // see Lazy (core/types.hpp)
+  static Eigen::Matrix<Lazy<L>, num_nodes, 3> gradient(const Vec3& /*p*/) {
+    Eigen::Matrix<Lazy<L>, num_nodes, 3> G;
     G << -1, -1, -1,
           1,  0,  0,
           0,  1,  0,
