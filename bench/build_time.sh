@@ -13,16 +13,19 @@
 #   readers          the umbrella plus <plastifem/mesh/io/io.hpp> and one read_gmsh<Hex8>
 #
 # Memory: "peak MB" is what the compile takes with g++'s default garbage collection; "live MB"
-# the same compile collecting at every 10% of growth (--param ggc-min-expand=10): the stable
-# measure for comparing two trees (GC=0 skips it, it takes twice the time).
+# the same compile collecting at every 10% of growth (--param ggc-min-expand=10 --param
+# ggc-min-heapsize=8192): the stable measure for comparing two trees. LIVE_MB=0 skips it (it
+# takes twice the time); it is "-" for a compiler other than g++.
 # Flags: CXX (default g++), OPT (default -O2), the include paths of the build's CMake cache
 # (Eigen, SuiteSparse) and OpenMP; results as a table and as CSV in <build>/bench/build_time.csv.
 set -euo pipefail
+shopt -s inherit_errexit  # a failed compile inside $( ) stops the script, not a garbage row
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-build}
 cxx=${CXX:-g++}
 opt=${OPT:--O2}
-gc=${GC:-1}
+live_mb=${LIVE_MB:-1}
+"$cxx" -v 2>&1 | grep -q '^gcc version' || live_mb=0  # --param ggc-* is g++'s
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
@@ -63,7 +66,8 @@ EOF
 
 measure() {  # name, extra flags...: prints "name seconds peak-megabytes live-megabytes"
   local name=$1; shift
-  /usr/bin/time -f "%U %S %M" -o "$work/$name.time" "$cxx" "${flags[@]}" "$@" -c "$work/${name%%+*}.cpp" -o "$work/$name.o"
+  /usr/bin/time -f "%U %S %M" -o "$work/$name.time" "$cxx" "${flags[@]}" "$@" -c "$work/${name%%+*}.cpp" -o "$work/$name.o" ||
+    { echo "build_time.sh: $name failed to compile" >&2; exit 1; }
   read -r user sys kb <"$work/$name.time"
   # The same compile with g++ collecting garbage whenever its heap grows by 10%: its peak is the
   # memory the file really needs (within 10%). The default peak above also depends on when the
@@ -71,9 +75,9 @@ measure() {  # name, extra flags...: prints "name seconds peak-megabytes live-me
   # templates the file does not call moved the Solver file's peak by 18 MB, its live memory by
   # 0.1 MB.
   local live=""
-  if [ "$gc" = 1 ]; then
+  if [ "$live_mb" != 0 ]; then
     /usr/bin/time -f "%M" -o "$work/$name.live" "$cxx" "${flags[@]}" "$@" --param ggc-min-expand=10 --param ggc-min-heapsize=8192 \
-      -c "$work/${name%%+*}.cpp" -o "$work/$name.o"
+      -c "$work/${name%%+*}.cpp" -o "$work/$name.o" || { echo "build_time.sh: $name failed to compile" >&2; exit 1; }
     live=$(awk '{ printf "%.0f", $1 / 1024 }' "$work/$name.live")
   fi
   awk -v n="$name" -v u="$user" -v s="$sys" -v k="$kb" -v l="${live:--}" 'BEGIN { printf "%s %.1f %.0f %s\n", n, u + s, k / 1024, l }'

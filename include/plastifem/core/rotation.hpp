@@ -13,6 +13,7 @@
 //    axis signs are the same rotation; the one from the largest column is returned.
 #include <plastifem/core/types.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 namespace plastifem {

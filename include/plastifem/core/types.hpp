@@ -19,8 +19,8 @@ using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
 /// Lazy<L> (Eigen::Matrix<Lazy<L>, 3, 3> is Mat3): its code then depends on L, so a file that
 /// does not call it compiles none of it. (Without the dependence, g++ still instantiates every
 /// Eigen expression type the body names when it parses the template; with it, 44 MB of the
-/// header-only Solver file's compiler memory went.) The mesh generators, whose bodies are
-/// standard containers rather than Eigen expressions, are plain `template <class = void>`.
+/// header-only Solver file's compiler memory went.) The mesh generators are still plain
+/// `template <class = void>`: mostly standard containers, with a few small Eigen expressions.
 template <class L>
 struct LazyScalar {
   using type = Scalar;
