@@ -14,8 +14,11 @@
 #
 # Memory: "peak MB" is what the compile takes with g++'s default garbage collection; "live MB"
 # the same compile collecting at every 10% of growth (--param ggc-min-expand=10 --param
-# ggc-min-heapsize=8192): the stable measure for comparing two trees. LIVE_MB=0 skips it (it
-# takes twice the time); it is "-" for a compiler other than g++.
+# ggc-min-heapsize=8192): the stable measure for comparing two trees. The default peak also
+# depends on where the collections fall, which any header edit moves: one more header of
+# function templates the Solver file does not call moved its peak by 18 MB, its live memory by
+# 0.1 MB. LIVE_MB=0 skips the second compile (it takes twice the time); "-" for a compiler other
+# than g++.
 # Flags: CXX (default g++), OPT (default -O2), the include paths of the build's CMake cache
 # (Eigen, SuiteSparse) and OpenMP; results as a table and as CSV in <build>/bench/build_time.csv.
 set -euo pipefail
@@ -64,20 +67,19 @@ int main(int argc, char** argv) {
 }
 EOF
 
+compile() {  # time-format, time-file, extra flags...: one timed compile of unit $name
+  local format=$1 out=$2; shift 2
+  /usr/bin/time -f "$format" -o "$out" "$cxx" "${flags[@]}" "$@" -c "$work/${name%%+*}.cpp" -o "$work/$name.o" ||
+    { echo "build_time.sh: $name failed to compile" >&2; exit 1; }
+}
+
 measure() {  # name, extra flags...: prints "name seconds peak-megabytes live-megabytes"
   local name=$1; shift
-  /usr/bin/time -f "%U %S %M" -o "$work/$name.time" "$cxx" "${flags[@]}" "$@" -c "$work/${name%%+*}.cpp" -o "$work/$name.o" ||
-    { echo "build_time.sh: $name failed to compile" >&2; exit 1; }
+  compile "%U %S %M" "$work/$name.time" "$@"
   read -r user sys kb <"$work/$name.time"
-  # The same compile with g++ collecting garbage whenever its heap grows by 10%: its peak is the
-  # memory the file really needs (within 10%). The default peak above also depends on when the
-  # collections happen, which any edit to the headers shifts: one more header of function
-  # templates the file does not call moved the Solver file's peak by 18 MB, its live memory by
-  # 0.1 MB.
-  local live=""
+  local live=""  # the same compile collecting at every 10% of growth (see the top of this file)
   if [ "$live_mb" != 0 ]; then
-    /usr/bin/time -f "%M" -o "$work/$name.live" "$cxx" "${flags[@]}" "$@" --param ggc-min-expand=10 --param ggc-min-heapsize=8192 \
-      -c "$work/${name%%+*}.cpp" -o "$work/$name.o" || { echo "build_time.sh: $name failed to compile" >&2; exit 1; }
+    compile "%M" "$work/$name.live" "$@" --param ggc-min-expand=10 --param ggc-min-heapsize=8192
     live=$(awk '{ printf "%.0f", $1 / 1024 }' "$work/$name.live")
   fi
   awk -v n="$name" -v u="$user" -v s="$sys" -v k="$kb" -v l="${live:--}" 'BEGIN { printf "%s %.1f %.0f %s\n", n, u + s, k / 1024, l }'
