@@ -1,12 +1,12 @@
 #pragma once
-// One Newmark step from a state n to a trial state n+1 (solver/newmark.hpp for the formulas),
-// in the two modes:
+// One Newmark (or generalized-alpha) step from a state n to a trial state n+1 (solver/newmark.hpp
+// for the formulas), in the two modes:
 //
 //  - Accurate: Newton on r(u) = 0 (solver/newton.hpp) from the constant-acceleration predictor
 //    (a retry from u_n if that fails), with the tangent assembled lazily, inexact CG, and a line
 //    search on |r| when the exact tangent is in use.
 //  - Real time: one linearised solve at u_n, the classic linearly implicit step SOFA and
-//    VegaFEM take: A du = -r_lin with r_lin = M a + D v + f_int(u_n) + K(u_n) (g - u_n) - f_ext,
+//    VegaFEM take: A du = -r_lin with r_lin = w_m M a + D v + f_int(u_n) + K(u_n) (g - u_n) - f_ext + h_n,
 //    the prescribed motion's increment g - u_n at constrained dofs entering through the tangent.
 //    Then the new state is evaluated, force and tangent in one assembly, which the next step
 //    needs anyway as its linearisation: an element the model cannot evaluate there (inverted,
@@ -52,7 +52,7 @@ class Dynamics {
   /// Sizes the scratch vectors for n dofs (no allocation in the step loop afterwards).
   void resize(Index n) {
     for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_, &damping_,
-                      &path_.u, &path_.v, &path_.a, &first_increment_, &u_rel_})
+                      &path_.u, &path_.v, &path_.a, &first_increment_, &u_rel_, &history_})
       x->setZero(n);
     linearisation_serial_ = 0;
   }
@@ -62,7 +62,7 @@ class Dynamics {
   /// n -> trial by one step of dt; the trial state gets `serial`. Throws SolverError on failure.
   StepReport attempt(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial) {
     // A sub-step of a cut step can be smaller than any dt Solver::step accepts.
-    if (!std::isfinite(Newmark{p.settings.newmark.beta, p.settings.newmark.gamma, dt}.c0()))
+    if (!std::isfinite(scheme(p.settings, dt).c0()))
       fail<SolverError>("Newmark step at t = {}: dt = {} is too small (1 / (beta dt^2) overflows); the state is "
                         "unchanged",
                         n.t + dt, dt);
@@ -155,6 +155,9 @@ class Dynamics {
 
  private:
   static bool use_exact(const SolverSettings& s) { return has_exact_tangent && s.newton.exact_tangent; }
+  static Newmark scheme(const SolverSettings& s, Scalar dt) {
+    return {s.newmark.beta, s.newmark.gamma, dt, s.newmark.alpha_m, s.newmark.alpha_f};
+  }
 
   /// Node i's rest position, for the prescribed paths.
   static auto position_of(Parts& p) {
@@ -176,6 +179,22 @@ class Dynamics {
     // released since).
     if (!p.constraints.empty()) p.constraints.evaluate(t1, dt, position_of(p), path_.u, &path_.v, &path_.a);
   }
+  /// Generalized-alpha: h_n = (alpha_m M a_n + alpha_f (f_int(u_n) + D v_n - f_ext(t_n))) / (1 - alpha_f)
+  /// (solver/newmark.hpp), the step's fixed share of the balance; f_int_n = f_int(u_n). Uses rhs_
+  /// as scratch.
+  void weighted_history(Parts& p, const StateT& n, const Newmark& nm, const Vector& f_int_n) {
+    p.system.M.multiply(a_start_, history_, p.threads);
+    history_ *= nm.alpha_m;
+    if (nm.alpha_f != 0) {
+      p.loads.assemble(n.t, rhs_);
+      history_ += nm.alpha_f * (f_int_n - rhs_);
+      add_damping(p, n.v, nm.alpha_f, history_);
+    }
+    history_ /= 1 - nm.alpha_f;
+    if (!history_.allFinite())
+      fail<SolverError>("Newmark step at t = {}: the forces at t = {} are not finite{}; the state is unchanged",
+                        n.t + nm.dt, n.t, where_invalid(p, n.u));
+  }
   void set_prescribed(Parts& p, Vector& u) const {
     for (Index d : p.system.constrained_dofs()) u[d] = path_.u[d];
   }
@@ -188,12 +207,16 @@ class Dynamics {
     for (Index d : p.system.constrained_dofs()) v_[d] = path_.v[d];
   }
 
-  /// r_ = M a(u) + f_int - f_ext + D v(u) (f_int_ holds f_int(u)); returns |r| over the free
-  /// dofs and sets `scale` to the largest term of the balance.
+  /// r_ = w_m M a(u) + f_int - f_ext + D v(u) + h_n (f_int_ holds f_int(u); w_m = 1, h_n = 0 for
+  /// Newmark); returns |r| over the free dofs and sets `scale` to the largest term of the balance.
   Scalar dynamic_residual(Parts& p, const StateT& n, const Newmark& nm, const Vector& u, const Vector& f_int,
                           Scalar f_ext_norm, Scalar& scale) {
     kinematics(p, n, nm, u);
     p.system.M.multiply(a_, r_, p.threads);
+    if (nm.weighted()) {
+      r_ *= nm.mass_weight();
+      r_ += history_;
+    }
     const Scalar inertia = p.system.free_norm(r_);
     r_ += f_int - f_ext_;
     Scalar damping = 0;
@@ -283,8 +306,14 @@ class Dynamics {
   StepReport accurate(Parts& p, const StateT& n, StateT& trial, Scalar dt, bool predictor, std::uint64_t serial) {
     const auto& st = p.settings;
     const auto t0 = std::chrono::steady_clock::now();
-    const Newmark nm{st.newmark.beta, st.newmark.gamma, dt};
+    const Newmark nm = scheme(st, dt);
     start_step(p, n, dt);
+    if (nm.weighted()) {
+      if (!evaluate(p, n.u, f_int_, false, TangentKind::Projected))
+        fail<SolverError>("Newmark step at t = {}: the current state cannot be evaluated{}; the state is unchanged",
+                          n.t + dt, where_invalid(p, n.u));
+      weighted_history(p, n, nm, f_int_);
+    }
     // Start from the constant-acceleration predictor u_n + dt v_n + dt^2/2 a_n, with the
     // constrained dofs at their new values: the first residual is then the change of
     // acceleration over the step, not the inertia of the whole step, which saves a Newton
@@ -293,7 +322,7 @@ class Dynamics {
     if (predictor) nm.predictor(n.u, n.v, a_start_, u_);
     else u_ = n.u;
     set_prescribed(p, u_);
-    Problem prob{*this, p, n, nm, nm.c0() + st.rayleigh_mass * nm.c1(), st.rayleigh_stiffness * nm.c1(),
+    Problem prob{*this, p, n, nm, nm.mass_weight() * nm.c0() + st.rayleigh_mass * nm.c1(), st.rayleigh_stiffness * nm.c1(),
                  use_exact(st) ? TangentKind::Exact : TangentKind::Projected};
     prob.f_ext_norm = p.system.free_norm(f_ext_);
     NewtonOptions o;
@@ -377,7 +406,7 @@ class Dynamics {
   StepReport realtime(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial) {
     const auto& st = p.settings;
     const auto t0 = std::chrono::steady_clock::now();
-    const Newmark nm{st.newmark.beta, st.newmark.gamma, dt};
+    const Newmark nm = scheme(st, dt);
     const Scalar t1 = n.t + dt;
     start_step(p, n, dt);
     TangentKind kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
@@ -389,7 +418,8 @@ class Dynamics {
                           where_invalid(p, n.u));
       linearisation_serial_ = n.serial;
     }
-    const Scalar cm = nm.c0() + st.rayleigh_mass * nm.c1(), cd = st.rayleigh_stiffness * nm.c1();
+    if (nm.weighted()) weighted_history(p, n, nm, f_lin_);
+    const Scalar cm = nm.mass_weight() * nm.c0() + st.rayleigh_mass * nm.c1(), cd = st.rayleigh_stiffness * nm.c1();
     const Scalar f_ext_norm = p.system.free_norm(f_ext_);
     Scalar scale = 0;
     auto linear_residual = [&] {
@@ -473,6 +503,7 @@ class Dynamics {
   }
 
   Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, damping_, first_increment_, u_rel_;
+  Vector history_;  ///< generalized-alpha's h_n for the step under way
   PathValues path_;
   std::uint64_t linearisation_serial_ = 0;  ///< the state f_lin_ and the system's K belong to (0: none)
 };

@@ -1,12 +1,19 @@
 #pragma once
-// Newmark's method (beta, gamma), seed 001 section 3.5 and Newmark (1959). From t_n to
-// t_{n+1} = t_n + dt, with u the unknown displacement at t_{n+1}:
+// Newmark's method (beta, gamma), seed 001 section 3.5 and Newmark (1959), and its
+// generalized-alpha extension (Chung and Hulbert 1993), which weights the balance between t_n
+// and t_{n+1}. From t_n to t_{n+1} = t_n + dt, with u the unknown displacement at t_{n+1}:
 //   predictor  u* = u_n + dt v_n + dt^2 / 2 a_n                      (constant acceleration)
 //   a(u) = c0 (u - u_n - dt v_n) - (1 / (2 beta) - 1) a_n,           c0 = 1 / (beta dt^2)
 //   v(u) = v_n + dt ((1 - gamma) a_n + gamma a(u))
-//   r(u) = M a(u) + D v(u) + f_int(u) - f_ext(t_{n+1}) = 0 at the free dofs,
-// and the Newton matrix dr/du = (c0 + alpha c1) M + K(u) + beta_R c1 K0, c1 = gamma / (beta dt),
-// for Rayleigh damping D = alpha M + beta_R K0.
+// and the balance, with g(u) = f_int(u) + D v(u) - f_ext(t_{n+1}) and g_n its value at t_n:
+//   (1 - alpha_m) M a(u) + alpha_m M a_n + (1 - alpha_f) g(u) + alpha_f g_n = 0
+// at the free dofs (Chung-Hulbert eq. 3, with the forces weighted as in HHT, so that a
+// nonlinear f_int is evaluated only at the states themselves). Divided by (1 - alpha_f):
+//   r(u) = w_m M a(u) + f_int(u) + D v(u) - f_ext(t_{n+1}) + h_n = 0,
+//   w_m = (1 - alpha_m) / (1 - alpha_f),  h_n = (alpha_m M a_n + alpha_f g_n) / (1 - alpha_f),
+// whose Newton matrix is dr/du = (w_m c0 + alpha c1) M + K(u) + beta_R c1 K0, c1 = gamma / (beta dt),
+// for Rayleigh damping D = alpha M + beta_R K0. alpha_m = alpha_f = 0 is Newmark's method
+// itself (w_m = 1, h_n = 0), computed with the same arithmetic.
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp), not these
 // formulas.
 #include <plastifem/assembly/block_matrix.hpp>
@@ -15,9 +22,14 @@ namespace plastifem {
 
 struct Newmark {
   Scalar beta = 0.25, gamma = 0.5, dt = 0;
+  Scalar alpha_m = 0, alpha_f = 0;  ///< generalized-alpha weights (0, 0: Newmark)
 
   Scalar c0() const { return 1 / (beta * dt * dt); }
   Scalar c1() const { return gamma / (beta * dt); }
+  /// Whether the balance is weighted (generalized-alpha, HHT) rather than taken at t_{n+1}.
+  bool weighted() const { return alpha_m != 0 || alpha_f != 0; }
+  /// w_m = (1 - alpha_m) / (1 - alpha_f): the inertia's weight in the scaled residual.
+  Scalar mass_weight() const { return (1 - alpha_m) / (1 - alpha_f); }
 
   /// u = u_n + dt v_n + dt^2 / 2 a_n.
   void predictor(const Vector& un, const Vector& vn, const Vector& an, Vector& u) const {
