@@ -9,8 +9,8 @@
 #                                 into build-sanitize/
 #   bash cmake/setup.sh fuzz [s]  the mesh readers' libFuzzer targets, s seconds each (default 60;
 #                                 installs clang; fuzz/README.md)
-#   bash cmake/setup.sh build-time  what including the toolkit costs the compiler (README,
-#                                 "Build time"): CPU seconds and peak memory per translation unit
+#   bash cmake/setup.sh build-time  what including the toolkit costs the compiler
+#                                 (docs/build_time.md): CPU seconds and peak memory per translation unit
 #   bash cmake/setup.sh bench [step|static|policy] [options]
 #                                 a benchmark (tables + CSV into build/bench/): ms per Newmark
 #                                 step (default), per static solve, or the NoPlasticity /

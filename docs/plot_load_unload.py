@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Plots the load-unload curves of examples/plastic_stretch (README, "Plasticity").
+"""Plots the load-unload curves of examples/plastic_stretch (docs/plasticity.md).
 
     /usr/bin/python3 docs/plot_load_unload.py OUT.png DIR
 DIR holds the example's CSVs (stretch_<model>_Hex8_VertexBlended_L0_set<k>.csv: time, force,

@@ -41,7 +41,7 @@ void run(const Options& o) {
   PlasticParams prm;
   prm.yield_stress = 1000;
   prm.flow_rate = 0.4;
-  prm.stress_scale = 50;  // the stretch scene's scaling (README, "Plasticity")
+  prm.stress_scale = 50;  // the stretch scene's scaling (docs/plasticity.md)
   prm.hardening = 0.2;
   Solver<E, Corotational, Policy, ShiftedHeaviside> s(mesh, Material{3000, 0.45, 1.0}, st, prm);
   s.fix(mesh.node_set("xmin"));

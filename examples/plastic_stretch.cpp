@@ -22,7 +22,7 @@
 //
 // --tolerance: Newton's relative residual tolerance and CG's (defaults 1e-6 and 1e-8,
 // SolverSettings): the mirror symmetry of the cross-section is only as good as the solves
-// (README, "Plasticity": the symmetry figures per level at both).
+// (docs/plasticity.md: the symmetry figures per level at both).
 //
 // --level: 0 = bar90 (10 x 3 x 3 unit cubes), 1 = 20 x 6 x 6 cubes of size 1/2, 2 = 40 x 12 x 12
 // of size 1/4: the same outer bar and the same total force (the paper's Fig. 8).

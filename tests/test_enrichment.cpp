@@ -588,7 +588,7 @@ TEST_CASE("X-FEM: the lumped mass (eq. 81-82) separates the pieces for Heaviside
   // cut, so the free piece drags the clamped side's inertia and falls slower. Measured on this
   // coarse bar: 9.1% (Hex8), 10% (Tet4), 3.6% (Tet10) behind g t^2 / 2 after 0.2 s. Use the
   // consistent mass, or Heaviside enrichment, where detached pieces must fall freely with a
-  // lumped mass (README, "Cutting").
+  // lumped mass (docs/xfem.md).
   CHECK(detached_piece_falls<Hex8, Corotational, Heaviside>(MassKind::Lumped) <= 1e-10);
   CHECK(detached_piece_falls<Tet4, Corotational, Heaviside>(MassKind::Lumped) <= 1e-10);
   CHECK(detached_piece_falls<Hex8, Corotational, Heaviside>(MassKind::Lumped, NewmarkMode::RealTime) <= 1e-10);

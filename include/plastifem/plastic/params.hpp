@@ -19,7 +19,7 @@ struct PlasticParams {
   Scalar flow_rate = 0.2;
   /// The stress is multiplied by this factor before the yield test and the flow rule (1: the
   /// physical stress, the default). The paper's scenes do not reach their yield stresses with
-  /// a physical stress measure (README, "Plasticity"); the examples that reproduce its figures
+  /// a physical stress measure (docs/plasticity.md); the examples that reproduce its figures
   /// say which factor they use.
   Scalar stress_scale = 1;
 

@@ -4,7 +4,7 @@
 // PLASTIFEM_USE_COMPILED) declares them `extern template`: their member functions are then
 // neither instantiated nor optimised in that translation unit but linked from the library.
 // A file using one Solver<Hex8, Corotational> and stepping it compiles in a third of the time
-// (README, "Build time"). Other compositions are instantiated where they are used, as usual.
+// (docs/build_time.md). Other compositions are instantiated where they are used, as usual.
 //
 // Every elastic model on every element, and the mean-dilatation variants on Hex8 (the element
 // they are for; on Tet4 they equal the full models).
