@@ -3,6 +3,7 @@
 #include <plastifem/elastic/corotational.hpp>
 #include <plastifem/elastic/hyperelastic.hpp>
 #include <plastifem/elastic/linear.hpp>
+#include <plastifem/elastic/mooney_rivlin.hpp>
 
 #include <utility>
 

@@ -11,6 +11,11 @@ struct Material {
   Scalar young = 0;    ///< E > 0
   Scalar poisson = 0;  ///< -1 < nu < 0.5
   Scalar density = 0;  ///< rho > 0
+  /// Mooney-Rivlin only (elastic/mooney_rivlin.hpp), ignored by every other model: the share
+  /// C01 / (C10 + C01) of the small-strain shear modulus mu = 2 (C10 + C01) that the second
+  /// invariant carries. 0 (the default) is Neo-Hookean, C10 = mu / 2; any finite value is
+  /// accepted (Abaqus too allows a negative C01 or C10: see from_mooney_rivlin).
+  Scalar c01_share = 0;
 
   /// Lame constants mu = E / (2 (1 + nu)), lambda = E nu / ((1 + nu)(1 - 2 nu)).
   Scalar mu() const { return young / (2 * (1 + poisson)); }
@@ -36,7 +41,28 @@ struct Material {
     return from_lame(K - 2 * mu / 3, mu, density);
   }
 
-  /// Throws InvalidArgument unless E > 0, -1 < nu < 0.5 and rho > 0 (all finite).
+  /// From Abaqus' MOONEY_RIVLIN constants, psi = C10 (I1bar - 3) + C01 (I2bar - 3) + (J - 1)^2 / D1
+  /// (CalculiX's too): mu = 2 (C10 + C01), K = 2 / D1 as from_abaqus, and c01_share =
+  /// C01 / (C10 + C01). The MooneyRivlin model reproduces the energy (to round-off of the
+  /// E, nu round trip); every other model sees the same small-strain E and nu. Needs
+  /// C10 + C01 > 0 and D1 > 0, all finite. One of C10, C01 may be negative, as Abaqus allows:
+  /// the material is then stable at small strain (mu > 0, K > 0) but may lose Drucker
+  /// stability at large ones. That is not checked here: it is the user's. (The solver's
+  /// tangent is projected to positive semi-definite per point, so its linear solves stay
+  /// defined, but where the energy is not convex a body can snap or have no equilibrium near.)
+  static Material from_mooney_rivlin(Scalar C10, Scalar C01, Scalar D1, Scalar density) {
+    if (!std::isfinite(C10) || !std::isfinite(C01) || !(C10 + C01 > 0) || !(D1 > 0) || !std::isfinite(D1))
+      fail<InvalidArgument>("Abaqus Mooney-Rivlin constants need C10 + C01 > 0 and D1 > 0 (finite), got C10 = {}, "
+                            "C01 = {}, D1 = {}",
+                            C10, C01, D1);
+    const Scalar mu = 2 * (C10 + C01), K = 2 / D1;
+    Material m = from_lame(K - 2 * mu / 3, mu, density);
+    m.c01_share = C01 / (C10 + C01);
+    return m;
+  }
+
+  /// Throws InvalidArgument unless E > 0, -1 < nu < 0.5 and rho > 0 (all finite) and c01_share
+  /// is finite.
   const Material& validated() const {
     if (!(young > 0) || !std::isfinite(young))
       fail<InvalidArgument>("Young's modulus must be finite and > 0, got E = {}", young);
@@ -46,6 +72,7 @@ struct Material {
                             poisson);
     if (!(density > 0) || !std::isfinite(density))
       fail<InvalidArgument>("density must be finite and > 0, got rho = {}", density);
+    if (!std::isfinite(c01_share)) fail<InvalidArgument>("the Mooney-Rivlin c01_share must be finite, got {}", c01_share);
     return *this;
   }
 };
