@@ -1,5 +1,5 @@
-// Explicit instantiation definitions of the common Solver types (solver/instantiations.hpp),
-// one source file per group so that the library builds in parallel.
+// Explicit instantiation definitions of the compiled compositions (solver/instantiations.hpp:
+// the one list), one source file per element so that the library builds in parallel.
 #include <plastifem/cutting.hpp>
 #include <plastifem/plasticity.hpp>
 
@@ -7,8 +7,11 @@
 #ifdef PLASTIFEM_COMPILED_ELASTIC_ONLY  // PLASTIFEM_COMPILED_POLICIES=OFF: the elastic types only
 #define PLASTIFEM_INSTANTIATE_PLASTIC_SOLVER(E, M, P)
 #define PLASTIFEM_INSTANTIATE_ENRICHED_SOLVER(E, M, X)
+#define PLASTIFEM_INSTANTIATE_PLASTIC_ENRICHED_SOLVER(E, M, P, X)
 #else
 #define PLASTIFEM_INSTANTIATE_PLASTIC_SOLVER(E, M, P) template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P>;
 #define PLASTIFEM_INSTANTIATE_ENRICHED_SOLVER(E, M, X) \
   template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::NoPlasticity, plastifem::X>;
+#define PLASTIFEM_INSTANTIATE_PLASTIC_ENRICHED_SOLVER(E, M, P, X) \
+  template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P, plastifem::X>;
 #endif

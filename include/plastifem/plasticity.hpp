@@ -20,3 +20,13 @@ static_assert(PlasticModel<VertexBlended> && PlasticModel<CellCentered>);
 PLASTIFEM_PLASTIC_SOLVERS(PLASTIFEM_EXTERN_PLASTIC_SOLVER)
 #undef PLASTIFEM_EXTERN_PLASTIC_SOLVER
 #endif
+
+// The compositions with both a plastic policy and an enrichment: declared by whichever of
+// <plastifem/plasticity.hpp> and <plastifem/cutting.hpp> is included second.
+#define PLASTIFEM_PLASTICITY_INCLUDED
+#if defined(PLASTIFEM_CUTTING_INCLUDED) && defined(PLASTIFEM_USE_COMPILED) && !defined(PLASTIFEM_COMPILED_ELASTIC_ONLY)
+#define PLASTIFEM_EXTERN_PLASTIC_ENRICHED_SOLVER(E, M, P, X) \
+  extern template class plastifem::Solver<plastifem::E, plastifem::M, plastifem::P, plastifem::X>;
+PLASTIFEM_PLASTIC_ENRICHED_SOLVERS(PLASTIFEM_EXTERN_PLASTIC_ENRICHED_SOLVER)
+#undef PLASTIFEM_EXTERN_PLASTIC_ENRICHED_SOLVER
+#endif

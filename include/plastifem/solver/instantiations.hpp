@@ -6,98 +6,63 @@
 // A file using one Solver<Hex8, Corotational> and stepping it compiles in a third of the time
 // (docs/build_time.md). Other compositions are instantiated where they are used, as usual.
 //
-// Every elastic model on every element, and the mean-dilatation variants on Hex8 (the element
-// they are for; on Tet4 they equal the full models).
-#define PLASTIFEM_COMMON_SOLVERS(X)                                                                          \
-  X(Tet4, Linear)                                                                                            \
-  X(Tet4, Corotational)                                                                                      \
-  X(Tet4, CorotationalPerElement)                                                                            \
-  X(Tet4, NeoHookean)                                                                                        \
-  X(Tet4, NeoHookeanAbaqus)                                                                                  \
-  X(Tet4, StableNeoHookean)                                                                                  \
-  X(Tet10, Linear)                                                                                           \
-  X(Tet10, Corotational)                                                                                     \
-  X(Tet10, CorotationalPerElement)                                                                           \
-  X(Tet10, NeoHookean)                                                                                       \
-  X(Tet10, NeoHookeanAbaqus)                                                                                 \
-  X(Tet10, StableNeoHookean)                                                                                 \
-  X(Hex8, Linear)                                                                                            \
-  X(Hex8, Corotational)                                                                                      \
-  X(Hex8, CorotationalPerElement)                                                                            \
-  X(Hex8, NeoHookean)                                                                                        \
-  X(Hex8, NeoHookeanAbaqus)                                                                                  \
-  X(Hex8, StableNeoHookean)                                                                                  \
-  X(Hex8, LinearMeanDilatation)                                                                              \
-  X(Hex8, CorotationalMeanDilatation)                                                                        \
-  X(Hex8, NeoHookeanMeanDilatation)                                                                          \
-  X(Hex8, NeoHookeanAbaqusMeanDilatation)                                                                    \
-  X(Hex8, StableNeoHookeanMeanDilatation)
+// This file is the one list of compositions: the source files of the library (src/solver_*.cpp)
+// instantiate it element by element, the policy headers (<plastifem/plasticity.hpp>,
+// <plastifem/cutting.hpp>) declare its plastic and cut types extern, and the per-composition
+// test (tests/test_compositions.cpp) runs every entry. A new elastic model is one entry in
+// PLASTIFEM_MODELS (and in PLASTIFEM_POLICY_MODELS to be compiled with the policies); a new
+// element is one line in each PLASTIFEM_*_SOLVERS list and a source file of its own.
 
-// The plastic compositions (seed 000): both policies with the elastic families on every element
-// (Linear, Corotational per point and per element, Neo-Hookean), and the mean-dilatation
-// models on Hex8. Compiled beside the elastic Solver of the same element and model, they share
-// its dynamics, statics and assembly: each adds ~3.5 s of CPU to the library.
+// Every elastic model, instantiated on every element (X(Element, Model)).
+#define PLASTIFEM_MODELS(X, E)                                                                               \
+  X(E, Linear) X(E, Corotational) X(E, CorotationalPerElement) X(E, NeoHookean) X(E, NeoHookeanAbaqus)       \
+  X(E, StableNeoHookean) X(E, MooneyRivlin)
+// The mean-dilatation variants, on Hex8 only: the element they are for (on Tet4 they equal the
+// full models).
+#define PLASTIFEM_MEAN_DILATATION_MODELS(X, E)                                                               \
+  X(E, LinearMeanDilatation) X(E, CorotationalMeanDilatation) X(E, NeoHookeanMeanDilatation)                 \
+  X(E, NeoHookeanAbaqusMeanDilatation) X(E, StableNeoHookeanMeanDilatation) X(E, MooneyRivlinMeanDilatation)
+// The models compiled with each plastic policy and each enrichment (X(Element, Model, Policy)):
+// the elastic families (linear, corotational per point and per element, Neo-Hookean).
+#define PLASTIFEM_POLICY_MODELS(X, E, P)                                                                     \
+  X(E, Linear, P) X(E, Corotational, P) X(E, CorotationalPerElement, P) X(E, NeoHookean, P)
+#define PLASTIFEM_PLASTIC_MEAN_DILATATION_MODELS(X, E, P) X(E, CorotationalMeanDilatation, P) X(E, NeoHookeanMeanDilatation, P)
+// The tissue models compiled with plasticity and cutting together (X(Element, Model, Plastic,
+// Enrichment)): a plastically deformed organ that is cut.
+#define PLASTIFEM_TISSUE_MODELS(X, E, P, C) X(E, Corotational, P, C) X(E, CorotationalPerElement, P, C) X(E, NeoHookean, P, C)
+
+// Per element: what one source file of the library compiles.
+#define PLASTIFEM_ELASTIC_SOLVERS_OF(X, E) PLASTIFEM_MODELS(X, E)
+#define PLASTIFEM_PLASTIC_SOLVERS_OF(X, E)                                                                   \
+  PLASTIFEM_POLICY_MODELS(X, E, VertexBlended) PLASTIFEM_POLICY_MODELS(X, E, CellCentered)
+#define PLASTIFEM_ENRICHED_SOLVERS_OF(X, E)                                                                  \
+  PLASTIFEM_POLICY_MODELS(X, E, Heaviside) PLASTIFEM_POLICY_MODELS(X, E, ShiftedHeaviside)
+#define PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, E)                                                          \
+  PLASTIFEM_TISSUE_MODELS(X, E, VertexBlended, Heaviside) PLASTIFEM_TISSUE_MODELS(X, E, VertexBlended, ShiftedHeaviside) \
+  PLASTIFEM_TISSUE_MODELS(X, E, CellCentered, Heaviside) PLASTIFEM_TISSUE_MODELS(X, E, CellCentered, ShiftedHeaviside)
+// Hex8's mean-dilatation models, in a source file of their own (the library builds in parallel).
+#define PLASTIFEM_ELASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X) PLASTIFEM_MEAN_DILATATION_MODELS(X, Hex8)
+#define PLASTIFEM_PLASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)                                                 \
+  PLASTIFEM_PLASTIC_MEAN_DILATATION_MODELS(X, Hex8, VertexBlended) PLASTIFEM_PLASTIC_MEAN_DILATATION_MODELS(X, Hex8, CellCentered)
+
+// The whole list, by kind.
+#define PLASTIFEM_ELASTIC_SOLVERS(X)                                                                         \
+  PLASTIFEM_ELASTIC_SOLVERS_OF(X, Tet4) PLASTIFEM_ELASTIC_SOLVERS_OF(X, Tet10) PLASTIFEM_ELASTIC_SOLVERS_OF(X, Hex8) \
+  PLASTIFEM_ELASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)
 #define PLASTIFEM_PLASTIC_SOLVERS(X)                                                                         \
-  X(Tet4, Linear, VertexBlended)                                                                             \
-  X(Tet4, Linear, CellCentered)                                                                              \
-  X(Tet4, Corotational, VertexBlended)                                                                       \
-  X(Tet4, Corotational, CellCentered)                                                                        \
-  X(Tet4, CorotationalPerElement, VertexBlended)                                                             \
-  X(Tet4, CorotationalPerElement, CellCentered)                                                              \
-  X(Tet4, NeoHookean, VertexBlended)                                                                         \
-  X(Tet4, NeoHookean, CellCentered)                                                                          \
-  X(Tet10, Linear, VertexBlended)                                                                            \
-  X(Tet10, Linear, CellCentered)                                                                             \
-  X(Tet10, Corotational, VertexBlended)                                                                      \
-  X(Tet10, Corotational, CellCentered)                                                                       \
-  X(Tet10, CorotationalPerElement, VertexBlended)                                                            \
-  X(Tet10, CorotationalPerElement, CellCentered)                                                             \
-  X(Tet10, NeoHookean, VertexBlended)                                                                        \
-  X(Tet10, NeoHookean, CellCentered)                                                                         \
-  X(Hex8, Linear, VertexBlended)                                                                             \
-  X(Hex8, Linear, CellCentered)                                                                              \
-  X(Hex8, Corotational, VertexBlended)                                                                       \
-  X(Hex8, Corotational, CellCentered)                                                                        \
-  X(Hex8, CorotationalPerElement, VertexBlended)                                                             \
-  X(Hex8, CorotationalPerElement, CellCentered)                                                              \
-  X(Hex8, NeoHookean, VertexBlended)                                                                         \
-  X(Hex8, NeoHookean, CellCentered)                                                                          \
-  X(Hex8, CorotationalMeanDilatation, VertexBlended)                                                         \
-  X(Hex8, CorotationalMeanDilatation, CellCentered)                                                          \
-  X(Hex8, NeoHookeanMeanDilatation, VertexBlended)                                                           \
-  X(Hex8, NeoHookeanMeanDilatation, CellCentered)
-
-// The cut compositions (seed 001): both enrichments with the elastic families on every element.
+  PLASTIFEM_PLASTIC_SOLVERS_OF(X, Tet4) PLASTIFEM_PLASTIC_SOLVERS_OF(X, Tet10) PLASTIFEM_PLASTIC_SOLVERS_OF(X, Hex8) \
+  PLASTIFEM_PLASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)
 #define PLASTIFEM_ENRICHED_SOLVERS(X)                                                                        \
-  X(Tet4, Linear, Heaviside) \
-  X(Tet4, Linear, ShiftedHeaviside) \
-  X(Tet4, Corotational, Heaviside) \
-  X(Tet4, Corotational, ShiftedHeaviside) \
-  X(Tet4, CorotationalPerElement, Heaviside) \
-  X(Tet4, CorotationalPerElement, ShiftedHeaviside) \
-  X(Tet4, NeoHookean, Heaviside) \
-  X(Tet4, NeoHookean, ShiftedHeaviside) \
-  X(Tet10, Linear, Heaviside) \
-  X(Tet10, Linear, ShiftedHeaviside) \
-  X(Tet10, Corotational, Heaviside) \
-  X(Tet10, Corotational, ShiftedHeaviside) \
-  X(Tet10, CorotationalPerElement, Heaviside) \
-  X(Tet10, CorotationalPerElement, ShiftedHeaviside) \
-  X(Tet10, NeoHookean, Heaviside) \
-  X(Tet10, NeoHookean, ShiftedHeaviside) \
-  X(Hex8, Linear, Heaviside) \
-  X(Hex8, Linear, ShiftedHeaviside) \
-  X(Hex8, Corotational, Heaviside) \
-  X(Hex8, Corotational, ShiftedHeaviside) \
-  X(Hex8, CorotationalPerElement, Heaviside) \
-  X(Hex8, CorotationalPerElement, ShiftedHeaviside) \
-  X(Hex8, NeoHookean, Heaviside) \
-  X(Hex8, NeoHookean, ShiftedHeaviside)
+  PLASTIFEM_ENRICHED_SOLVERS_OF(X, Tet4) PLASTIFEM_ENRICHED_SOLVERS_OF(X, Tet10) PLASTIFEM_ENRICHED_SOLVERS_OF(X, Hex8)
+#define PLASTIFEM_PLASTIC_ENRICHED_SOLVERS(X)                                                                \
+  PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, Tet4) PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, Tet10)               \
+  PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, Hex8)
 
 // The extern declarations of the elastic types are here; those of the plastic and cut types are
-// in <plastifem/plasticity.hpp> and <plastifem/cutting.hpp>, which define those policies.
+// in <plastifem/plasticity.hpp> and <plastifem/cutting.hpp>, which define those policies (the
+// plastic and cut ones in whichever of the two is included second).
 #ifdef PLASTIFEM_USE_COMPILED
 #define PLASTIFEM_EXTERN_SOLVER(E, M) extern template class plastifem::Solver<plastifem::E, plastifem::M>;
-PLASTIFEM_COMMON_SOLVERS(PLASTIFEM_EXTERN_SOLVER)
+PLASTIFEM_ELASTIC_SOLVERS(PLASTIFEM_EXTERN_SOLVER)
 #undef PLASTIFEM_EXTERN_SOLVER
 #endif
