@@ -362,14 +362,7 @@ class Dynamics {
       fail<SolverError>("Newmark step at t = {} produced non-finite values; the state is unchanged", t1);
     store(n, trial, dt, serial);
     StepReport rep;
-    rep.newton_iterations = res.iterations;
-    rep.linear_iterations = res.linear_iterations;
-    rep.residual = res.residual;
-    rep.relative_residual = res.relative_residual;
-    rep.convergence = res.convergence;
-    rep.stagnated = res.convergence == Convergence::Stagnated;
-    rep.linear_converged = res.linear_converged;
-    rep.linear_relative_residual = res.linear_relative_residual;
+    record(rep, res);
     rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return rep;
   }

@@ -70,6 +70,19 @@ struct NewtonResult {
   Scalar linear_relative_residual = 0;
 };
 
+/// A Newton solve into a step's report: its iterations are added, its end (residual, how it
+/// ended, its last linear solve) is the report's.
+inline void record(StepReport& rep, const NewtonResult& r) {
+  rep.newton_iterations += r.iterations;
+  rep.linear_iterations += r.linear_iterations;
+  rep.residual = r.residual;
+  rep.relative_residual = r.relative_residual;
+  rep.convergence = r.convergence;
+  rep.stagnated = rep.stagnated || r.convergence == Convergence::Stagnated;
+  rep.linear_converged = rep.linear_converged && r.linear_converged;
+  rep.linear_relative_residual = r.linear_relative_residual;
+}
+
 /// Backtracking on |r| along du (force-only evaluations): the full step if it decreases |r|,
 /// else the first halved step that does. If none does (the warped corotational tangent is not
 /// the exact Jacobian, so du need not descend; or the tangent is stale), `found` is false and

@@ -43,7 +43,6 @@ class Statics {
     f_start_ = state.load.size() == n ? state.load : Vector::Zero(n);
     const Vector u_start = state.u;
     StepReport rep;
-    rep.newton_iterations = rep.linear_iterations = 0;
     Scalar done = 0, step = 1.0 / load_steps;
     int cuts = 0, increments = 0;
     bool rest_changed = false;
@@ -53,13 +52,7 @@ class Statics {
       for (Index d : p.system.constrained_dofs()) u_[d] = u_start[d] + s * (g_target_[d] - u_start[d]);
       f_ext_ = f_start_ + s * (f_target_ - f_start_);
       try {
-        const NewtonResult r = increment(p, state.t);
-        rep.newton_iterations += r.iterations;
-        rep.linear_iterations += r.linear_iterations;
-        rep.residual = r.residual;
-        rep.relative_residual = r.relative_residual;
-        rep.convergence = r.convergence;
-        rep.linear_converged = rep.linear_converged && r.linear_converged;
+        record(rep, increment(p, state.t));
         state.u = u_;
         state.load = f_ext_;
         rest_changed = increment_done(state, s - done);
@@ -74,11 +67,7 @@ class Statics {
     if (rest_changed) {
       // Equilibrium with the rest shapes the last increment's flow left (no further flow).
       u_ = state.u;
-      const NewtonResult r = increment(p, state.t);
-      rep.newton_iterations += r.iterations;
-      rep.linear_iterations += r.linear_iterations;
-      rep.residual = r.residual;
-      rep.relative_residual = r.relative_residual;
+      record(rep, increment(p, state.t));
       state.u = u_;
     }
     state.v.setZero();
