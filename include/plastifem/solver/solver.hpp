@@ -14,13 +14,15 @@
 // (Newton, CG, a NaN, an inverted element, an exception thrown by a load curve or a prescribed
 // path): every change is made to a working copy, committed by a swap at the very end.
 //
-// The plastic and enrichment axes are compiled only where they are used: with NoPlasticity
-// and NoEnrichment their code paths are discarded (if constexpr) and their headers are not
-// included; the active policies come with <plastifem/plasticity.hpp> and <plastifem/cutting.hpp>.
+// The plastic axis is asked through its hooks (plastic/hooks.hpp: init, sync, after a step or
+// an increment, on a cut), which are empty for NoPlasticity; the enrichment's code paths are
+// discarded (if constexpr) with NoEnrichment. Neither axis's headers are included for the
+// inactive policies; the active ones come with <plastifem/plasticity.hpp> and
+// <plastifem/cutting.hpp>.
 #include <plastifem/core/log.hpp>
 #include <plastifem/enrichment/enrichment_policy.hpp>
 #include <plastifem/mesh/selection.hpp>
-#include <plastifem/plastic/plastic.hpp>
+#include <plastifem/plastic/hooks.hpp>
 #include <plastifem/solver/statics.hpp>
 #include <plastifem/solver/step_control.hpp>
 
@@ -38,26 +40,15 @@ class Solver {
   static_assert(EnrichmentModel<Enrich>, "the enrichment policy must be NoEnrichment, Heaviside or ShiftedHeaviside "
                                          "(enrichment/enrichment_policy.hpp: the EnrichmentModel concept)");
   static constexpr bool enriched = Enrich::active;
-
-  struct NoPlasticEngine {};
-  static constexpr bool plastic = Plastic::active;
-  template <class P, bool = P::active>
-  struct PlasticParts {
-    using State = NoPlasticState;
-    using Engine = NoPlasticEngine;
-  };
-  template <class P>
-  struct PlasticParts<P, true> {
-    using State = typename P::State;
-    using Engine = typename P::template Engine<E, Elastic>;
-  };
+  using PlasticHooksType = PlasticHooks<Plastic, E, Elastic>;  // plastic/hooks.hpp
 
  public:
   using Element = E;
   using ElasticModel = Elastic;
   using PlasticPolicy = Plastic;
+  using EnrichmentPolicy = Enrich;
   using PlasticParamsType = typename Plastic::Params;
-  using StateType = State<typename PlasticParts<Plastic>::State>;
+  using StateType = State<typename PlasticHooksType::State>;
   static constexpr int N = E::num_nodes;
 
   /// `plastic_params`: the plastic policy's parameters (PlasticParams for VertexBlended and
@@ -154,7 +145,7 @@ class Solver {
   void set_acceleration(const Vector& a);
 
   // --- plasticity (seed 000; plastic/) -----------------------------------------------------
-  const PlasticParamsType& plastic_params() const { return plastic_params_; }
+  const PlasticParamsType& plastic_params() const { return plastic_.params(); }
   /// New plastic parameters mid-run: thresholds keep their hardening, shifted by the change of
   /// the initial yield values (plastic/plasticity.hpp).
   void set_plastic_params(const PlasticParamsType& p);
@@ -225,20 +216,16 @@ class Solver {
 
   /// Brings the element data to state s's rest shapes (plastic flow); forgets what was derived
   /// from the old ones.
-  void sync_rest_shapes(const StateType& s);
-  /// The plastic update after a converged (sub-)step of dt into state s (dynamics).
-  void plastic_update(StateType& s, Scalar dt, StepReport& r);
-
-  /// Plasticity and cutting: the rest positions the enriched elements' points are mapped with
-  /// (the material mesh; null without plasticity: the mesh's).
-  const Vector* rest_positions() const {
-    if constexpr (plastic) return &current_.plastic.rest;
-    else return nullptr;
+  void sync_rest_shapes(const StateType& s) {
+    if (plastic_.sync(body_, s.plastic, threads())) dynamics_.invalidate();  // the real-time linearisation was of the old shapes
   }
-  /// Plasticity and cutting: an enriched element's plastic flow stops when it is cut
-  /// (docs/xfem.md: the flow's deformation gradient is the standard element's, which the
-  /// enrichment makes discontinuous); its rest shape still follows the material mesh.
-  void freeze_enriched_plasticity();
+  /// After a cut: its enriched elements stop flowing, and everything derived from the dof map
+  /// is rebuilt.
+  void cut_applied() {
+    rebuild();
+    if constexpr (enriched) cut_report_.plastic_frozen += plastic_.on_cut(body_.enrichment(), current_.plastic);
+    dynamics_.invalidate();
+  }
 
   /// X-FEM: the enriched dofs' share of a body force (empty without a cut).
   typename Loads<E>::EnrichedBodyForce enriched_body_force() const {
@@ -260,9 +247,7 @@ class Solver {
   Dynamics<E, Elastic, enriched> dynamics_;
   Statics<E, Elastic, enriched> statics_;
   StateType current_, work_, trial_;
-  PlasticParamsType plastic_params_;
-  [[no_unique_address]] typename PlasticParts<Plastic>::Engine plastic_;
-  std::vector<char> anchor_;  ///< nodes with a constrained dof: the material mesh stays put there
+  PlasticHooksType plastic_;
   std::uint64_t serial_ = 0;
   mutable Vector scratch_;
 };
@@ -272,7 +257,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings,
                                             PlasticParamsType plastic_params)
     : settings_(validated(settings)), body_(mesh, material.validated()), system_(settings_),
-      constraints_(mesh.num_nodes()), plastic_params_(plastic_params) {
+      constraints_(mesh.num_nodes()), plastic_(plastic_params) {
   if (const auto& unused = body_.mesh().report().unused_nodes; !unused.empty()) {
     std::string ids;
     for (size_t k = 0; k < unused.size() && k < 20; ++k) ids += fmt::format("{}{}", k ? ", " : "", unused[k]);
@@ -282,10 +267,7 @@ Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material&
   }
   current_.reset(body_.num_dofs());
   current_.serial = ++serial_;
-  if constexpr (plastic) {
-    plastic_params_.validate();
-    plastic_.init(body_, plastic_params_, current_.plastic);
-  }
+  plastic_.init(body_, current_.plastic);
   rebuild();
 }
 
@@ -485,16 +467,10 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
     // After each converged increment the plastic flow, over the share of static_time its load
     // fraction stands for; the element data then follow the working state.
     r = statics_.solve(p, work_, load_steps, [&](MotionState& s, Scalar fraction) {
-      if constexpr (plastic) {
-        const auto before = work_.plastic.version;
-        flow.add(plastic_.update(body_, s.u, fraction * plastic_params_.static_time, plastic_params_, work_.plastic,
-                                 ++serial_, threads(), anchor_));
-        sync_rest_shapes(work_);
-        return work_.plastic.version != before;
-      } else {
-        (void)s, (void)fraction;
-        return false;
-      }
+      const auto before = PlasticHooksType::version(work_.plastic);
+      flow.add(plastic_.after_increment(body_, s.u, fraction, work_.plastic, serial_, threads()));
+      sync_rest_shapes(work_);
+      return PlasticHooksType::version(work_.plastic) != before;
     });
   } catch (...) {
     sync_rest_shapes(current_);  // the element data back to the committed rest shapes
@@ -522,13 +498,7 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
     r = advance(current_, work_, trial_, dt, settings_.max_step_cuts, [&](const StateType& from, StateType& to, Scalar h) {
       sync_rest_shapes(from);
       StepReport sr = dynamics_.attempt(p, from, to, h, ++serial_);
-      if constexpr (plastic) {
-        const auto t_flow = std::chrono::steady_clock::now();
-        to.plastic = from.plastic;  // (reuses to's storage)
-        plastic_update(to, h, sr);
-        sr.plastic.wall_ms =
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_flow).count();
-      }
+      sr.plastic = plastic_.after_step(body_, to.u, h, from.plastic, to.plastic, serial_, threads());
       return sr;
     });
   } catch (...) {
@@ -610,7 +580,7 @@ Vector Solver<E, Elastic, Plastic, Enrich>::von_mises_stress() const {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
-  if constexpr (plastic) plastic_.pattern_changed();
+  plastic_.pattern_changed();
   body_.rebuild();
   const Index n = body_.num_dofs();
   system_.rebuild(body_, settings_, constraints_.constrained_dofs(), held_enriched_dofs());
@@ -626,11 +596,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::constraints_changed() {
   system_.set_constrained(body_, constraints_.constrained_dofs(), held_enriched_dofs());
-  if constexpr (plastic) {
-    anchor_.assign(mesh().num_nodes(), 0);
-    for (Index i = 0; i < mesh().num_nodes(); ++i)
-      anchor_[i] = system_.constrained(3 * i) || system_.constrained(3 * i + 1) || system_.constrained(3 * i + 2);
-  }
+  plastic_.constraints_changed(mesh().num_nodes(), [this](Index d) { return system_.constrained(d); });
   current_.acceleration_known = false;
 }
 
@@ -645,37 +611,14 @@ LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename Loads<E>::Defi
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::sync_rest_shapes(const StateType& s) {
-  if constexpr (plastic) {
-    if (plastic_.sync(body_, s.plastic, threads())) dynamics_.invalidate();  // the real-time linearisation was of the old shapes
-  } else {
-    (void)s;
-  }
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::plastic_update(StateType& s, Scalar dt, StepReport& r) {
-  if constexpr (plastic)
-    r.plastic = plastic_.update(body_, s.u, dt, plastic_params_, s.plastic, ++serial_, threads(), anchor_);
-  else (void)s, (void)dt, (void)r;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::set_plastic_params(const PlasticParamsType& p) {
-  if constexpr (plastic) {
-    p.validate();
-    plastic_.change_params(plastic_params_, p, current_.plastic);
-  }
-  plastic_params_ = p;
+  plastic_.set_params(p, current_.plastic);
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::material_positions() const {
-  if constexpr (plastic) return Eigen::Map<const Eigen::Matrix3Xd>(current_.plastic.rest.data(), 3, mesh().num_nodes());
-  else return mesh().nodes();
+  return PlasticHooksType::material_positions(current_.plastic, mesh().nodes());
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -684,10 +627,8 @@ CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOption
   requires Enrich::active
 {
   int id = -1;
-  cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id, rest_positions());
-  rebuild();
-  freeze_enriched_plasticity();
-  dynamics_.invalidate();
+  cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id, PlasticHooksType::rest_positions(current_.plastic));
+  cut_applied();
   return CutHandle{id};
 }
 
@@ -698,26 +639,8 @@ void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surfa
 {
   if (h.id < 0) fail<InvalidArgument>("grow_cut: an invalid cut handle");
   int id = -1;
-  cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id, rest_positions());
-  if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) {
-    rebuild();
-    freeze_enriched_plasticity();
-    dynamics_.invalidate();
-  }
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::freeze_enriched_plasticity() {
-  if constexpr (plastic && enriched) {
-    using Table = typename PlasticParts<Plastic>::State;  // PlasticTable (not included by this light header)
-    std::vector<std::uint8_t>& off = current_.plastic.off;
-    for (size_t k = 0; k < body_.enrichment().elements().size(); ++k) {
-      const Index e = body_.enrichment().element_of(k);
-      if (off[e] == 0) ++cut_report_.plastic_frozen;  // (one the shape safeguard stopped is not counted)
-      off[e] = Table::cut;
-    }
-  }
+  cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id, PlasticHooksType::rest_positions(current_.plastic));
+  if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) cut_applied();
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>

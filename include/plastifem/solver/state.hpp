@@ -16,17 +16,12 @@
 //   serial     an identity: a derived quantity computed from this state (the real-time step's
 //              linearisation) is valid while the committed state carries the same serial.
 #include <plastifem/assembly/block_matrix.hpp>
+#include <plastifem/plastic/none.hpp>
 
 #include <cstdint>
 #include <utility>
 
 namespace plastifem {
-
-/// The plastic part of a State for NoPlasticity: nothing.
-struct NoPlasticState {
-  void resize(Index) {}
-  friend bool operator==(const NoPlasticState&, const NoPlasticState&) { return true; }
-};
 
 /// The motion part of a State: everything a Newmark step or a static solve changes. Dynamics
 /// and Statics work on it alone, so that they are compiled once per (element, model) whatever
