@@ -844,3 +844,29 @@ TEST_CASE("X-FEM: Heaviside enrichment holds the enriched dofs of constrained no
   for (Index i : mesh.node_set("xmin")) CHECK(u.col(i).norm() == 0);
   CHECK(u.cwiseAbs().maxCoeff() > 1e-3);
 }
+
+TEST_CASE("X-FEM: a cut handle names its own solver's cut: another solver's is refused", "[enrichment]") {
+  // Issue 33 item 12 for cuts: each solver numbered its cuts from 0, so grow_cut with another
+  // solver's handle grew this solver's own cut.
+  const Mesh<Tet4> mesh = bar_mesh<Tet4>(4, 2, 2);
+  using S = Solver<Tet4, Corotational, NoPlasticity, Heaviside>;
+  S a(mesh, Material{3000, 0.45, 1.0}), b(mesh, Material{3000, 0.45, 1.0});
+  auto blade = [](Scalar depth) { return CutPatch(Vec3(2.5, -0.1, -0.1), Vec3(0, depth, 0), Vec3(0, 0, 2.2)); };
+  const CutHandle cut_a = a.cut(blade(1.0));
+  const CutHandle cut_b = b.cut(blade(1.0));
+  const Index dofs_a = a.num_dofs();
+  std::string err = "(accepted)";
+  try {
+    a.grow_cut(cut_b, blade(2.0));
+  } catch (const InvalidArgument& e) {
+    err = e.what();
+  }
+  fmt::print("a.grow_cut(b's cut): {} (a's dofs {} -> {})\n", err, dofs_a, a.num_dofs());
+  CHECK(err.find("another solver") != std::string::npos);
+  CHECK(a.num_dofs() == dofs_a);  // a's own cut did not grow
+  CHECK(refused([&] { a.grow_cut(CutHandle{}, blade(2.0)); }, "cut handle"));
+  a.grow_cut(cut_a, blade(2.0));  // its own handle grows it
+  CHECK(a.num_dofs() > dofs_a);
+  b.grow_cut(cut_b, blade(2.0));
+  CHECK(b.num_dofs() == a.num_dofs());
+}

@@ -17,6 +17,7 @@
 // The plastic and enrichment axes are compiled only where they are used: with NoPlasticity
 // and NoEnrichment their code paths are discarded (if constexpr) and their headers are not
 // included; the active policies come with <plastifem/plasticity.hpp> and <plastifem/cutting.hpp>.
+#include <plastifem/core/handle_owner.hpp>
 #include <plastifem/core/log.hpp>
 #include <plastifem/enrichment/enrichment_policy.hpp>
 #include <plastifem/mesh/selection.hpp>
@@ -263,6 +264,7 @@ class Solver {
   PlasticParamsType plastic_params_;
   [[no_unique_address]] typename PlasticParts<Plastic>::Engine plastic_;
   std::vector<char> anchor_;  ///< nodes with a constrained dof: the material mesh stays put there
+  HandleOwner cut_owner_;     ///< the number its cut handles carry (a cut handle of another solver is refused)
   std::uint64_t serial_ = 0;
   mutable Vector scratch_;
 };
@@ -688,7 +690,7 @@ CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOption
   rebuild();
   freeze_enriched_plasticity();
   dynamics_.invalidate();
-  return CutHandle{id};
+  return CutHandle{id, cut_owner_.id()};
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -696,7 +698,11 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surface, CutOptions options)
   requires Enrich::active
 {
-  if (h.id < 0) fail<InvalidArgument>("grow_cut: an invalid cut handle");
+  if (h.id < 0 || h.owner == 0) fail<InvalidArgument>("grow_cut: an invalid cut handle (a default handle names no cut)");
+  if (h.owner != cut_owner_.id())
+    fail<InvalidArgument>("grow_cut: cut handle {} belongs to another solver: a handle names a cut of the solver that "
+                          "issued it",
+                          h.id);
   int id = -1;
   cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id, rest_positions());
   if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) {
