@@ -844,3 +844,115 @@ TEST_CASE("X-FEM: Heaviside enrichment holds the enriched dofs of constrained no
   for (Index i : mesh.node_set("xmin")) CHECK(u.col(i).norm() == 0);
   CHECK(u.cwiseAbs().maxCoeff() > 1e-3);
 }
+
+TEST_CASE("X-FEM: a cut's normal is normalised whatever its scale; a zero or non-finite one is refused",
+          "[enrichment]") {
+  // Issue 33 item 9: the normal (1e200, 0, 0) overflowed |n| (inf: normalised to zero, "separates
+  // no part"), (1e-200, 0, 0) underflowed it (0: "the normal is zero"). Scaled by its largest
+  // component first, a finite non-zero normal has a norm in [1, sqrt 3]: it normalises to the
+  // unit normal to a few ulps (4 eps allowed: a division, a norm, a division).
+  const Scalar eps = std::numeric_limits<Scalar>::epsilon();
+  const Scalar tiny = std::numeric_limits<Scalar>::denorm_min(), huge = std::numeric_limits<Scalar>::max();
+  const Mesh<Tet4> mesh = bar_mesh<Tet4>(4, 2, 2);
+  using S = Solver<Tet4, Corotational, NoPlasticity, Heaviside>;
+  S ref(mesh, Material{3000, 0.45, 1.0});
+  ref.cut(CutPlane(Vec3(2.5, 0, 0), Vec3(1, 0, 0)));
+  const CutReport want = ref.last_cut_report();
+  const std::vector<std::pair<Vec3, Vec3>> normals{
+      {Vec3(1e200, 0, 0), Vec3(1, 0, 0)},      {Vec3(1e-200, 0, 0), Vec3(1, 0, 0)},
+      {Vec3(huge, 0, 0), Vec3(1, 0, 0)},       {Vec3(tiny, 0, 0), Vec3(1, 0, 0)},
+      {Vec3(huge, 1e-200, -tiny), Vec3(1, 0, 0)}, {Vec3(0.75e-200, 1e-200, 0), Vec3(0.6, 0.8, 0)},
+      {Vec3(3e200, -4e200, 0), Vec3(0.6, -0.8, 0)}};
+  for (const auto& [n, unit] : normals) {
+    std::string err;
+    try {
+      const CutPlane plane(Vec3(2.5, 0, 0), n);
+      CHECK((plane.normal - unit).norm() <= 4 * eps);
+      if (unit == Vec3(1, 0, 0)) {  // a normal along x cuts as the unit one
+        S s(mesh, Material{3000, 0.45, 1.0});
+        s.cut(plane);
+        CHECK(s.last_cut_report().cut_elements == want.cut_elements);
+        CHECK(s.num_dofs() == ref.num_dofs());
+      }
+    } catch (const Error& e) {
+      err = e.what();
+    }
+    fmt::print("cut plane normal ({:g}, {:g}, {:g}): {}\n", n.x(), n.y(), n.z(), err.empty() ? "cuts" : err);
+    CHECK(err.empty());
+  }
+  CHECK(refused([] { CutPlane(Vec3(2.5, 0, 0), Vec3(0, 0, 0)); }, "the normal is zero"));
+  CHECK(refused([] { CutPlane(Vec3(2.5, 0, 0), Vec3(-0.0, 0, 0)); }, "the normal is zero"));
+  CHECK(refused([&] { CutPlane(Vec3(2.5, 0, 0), Vec3(std::numeric_limits<Scalar>::infinity(), 0, 0)); }, "finite"));
+  CHECK(refused([&] { CutPlane(Vec3(2.5, 0, 0), Vec3(std::nan(""), 1, 0)); }, "finite"));
+
+  // A patch: its normal e1 x e2 overflowed or underflowed the same way (and its area test with
+  // it, "span no area"); scaled edges give the unit normal to a few ulps, and the sign of the
+  // level set at points a unit from it. Parallel or zero edges span no area at any scale.
+  for (const Scalar scale : {1e-200, 1e-100, 1.0, 1e70}) {
+    std::string err;
+    try {
+      const CutPatch patch(Vec3(2.5, -0.5, -0.5), Vec3(0, 3 * scale, 0), Vec3(0, 0, 3 * scale));
+      CHECK((patch.normal() - Vec3(1, 0, 0)).norm() <= 4 * eps);
+      CHECK(patch.signed_distance(Vec3(3, 0.5, 0.5)) > 0);
+      CHECK(patch.signed_distance(Vec3(2, 0.5, 0.5)) < 0);
+    } catch (const Error& e) {
+      err = e.what();
+    }
+    fmt::print("cut patch with edges {:g}: {}\n", 3 * scale, err.empty() ? "accepted, unit normal" : err);
+    CHECK(err.empty());
+    CHECK(refused([&] { CutPatch(Vec3(0, 0, 0), Vec3(0, scale, 0), Vec3(0, 2 * scale, 0)); }, "span no area"));
+    CHECK(refused([&] { CutPatch(Vec3(0, 0, 0), Vec3(0, scale, 0), Vec3(0, 0, 0)); }, "span no area"));
+  }
+
+  // A triangulated surface: a tiny triangle's normal underflowed to zero ("all triangles have
+  // zero area"); with unit face normals its pseudo-normals give the right sign at any scale.
+  for (const Scalar scale : {1e-200, 1.0, 1e70}) {
+    std::string err;
+    try {
+      const CutSurface tri({Vec3(0, 0, 0), Vec3(0, scale, 0), Vec3(0, 0, scale)}, {{0, 1, 2}});
+      CHECK(tri.signed_distance(Vec3(1, 0.2 * scale, 0.2 * scale)) > 0);
+      CHECK(tri.signed_distance(Vec3(-1, 0.2 * scale, 0.2 * scale)) < 0);
+      CHECK(tri.signed_distance(Vec3(1, -scale, -scale)) > 0);  // nearest feature: a vertex
+    } catch (const Error& e) {
+      err = e.what();
+    }
+    fmt::print("cut surface triangle of size {:g}: {}\n", scale, err.empty() ? "accepted" : err);
+    CHECK(err.empty());
+  }
+  CHECK(refused([] { CutSurface({Vec3(0, 0, 0), Vec3(0, 1, 0), Vec3(0, 2, 0)}, {{0, 1, 2}}); }, "zero area"));
+
+  // Bounded geometry whose distance computations would overflow (coordinates beyond 1e75: they
+  // multiply four lengths) is refused by name, not turned into a zero normal, NaN level sets or
+  // "span no area". (Before, a patch of edges 1e100 had a zero normal and no sign, a triangle of
+  // 1e100 the distance sqrt(DBL_MAX) at a unit from it.)
+  for (const Scalar big : {1e100, 1e200, huge}) {
+    CHECK(refused([&] { CutPatch(Vec3(0, 0, 0), Vec3(0, big, 0), Vec3(0, 0, big)); }, "1e75"));
+    CHECK(refused([&] { CutSurface({Vec3(0, 0, 0), Vec3(0, big, 0), Vec3(0, 0, big)}, {{0, 1, 2}}); }, "1e75"));
+  }
+}
+
+TEST_CASE("X-FEM: a cut handle names its own solver's cut: another solver's is refused", "[enrichment]") {
+  // Issue 33 item 12 for cuts: each solver numbered its cuts from 0, so grow_cut with another
+  // solver's handle grew this solver's own cut.
+  const Mesh<Tet4> mesh = bar_mesh<Tet4>(4, 2, 2);
+  using S = Solver<Tet4, Corotational, NoPlasticity, Heaviside>;
+  S a(mesh, Material{3000, 0.45, 1.0}), b(mesh, Material{3000, 0.45, 1.0});
+  auto blade = [](Scalar depth) { return CutPatch(Vec3(2.5, -0.1, -0.1), Vec3(0, depth, 0), Vec3(0, 0, 2.2)); };
+  const CutHandle cut_a = a.cut(blade(1.0));
+  const CutHandle cut_b = b.cut(blade(1.0));
+  const Index dofs_a = a.num_dofs();
+  std::string err = "(accepted)";
+  try {
+    a.grow_cut(cut_b, blade(2.0));
+  } catch (const InvalidArgument& e) {
+    err = e.what();
+  }
+  fmt::print("a.grow_cut(b's cut): {} (a's dofs {} -> {})\n", err, dofs_a, a.num_dofs());
+  CHECK(err.find("another solver") != std::string::npos);
+  CHECK(a.num_dofs() == dofs_a);  // a's own cut did not grow
+  CHECK(refused([&] { a.grow_cut(CutHandle{}, blade(2.0)); }, "cut handle"));
+  a.grow_cut(cut_a, blade(2.0));  // its own handle grows it
+  CHECK(a.num_dofs() > dofs_a);
+  b.grow_cut(cut_b, blade(2.0));
+  CHECK(b.num_dofs() == a.num_dofs());
+}

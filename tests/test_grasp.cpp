@@ -262,3 +262,46 @@ TEST_CASE("constraint handles: release mid-ramp keeps the velocity, replace chan
     CHECK((s.displacement(end[0]) - before - Vec3(0.01, 0, 0)).norm() < 1e-12);
   }
 }
+
+TEST_CASE("constraint and load handles name their own solver's sets: another solver's handle is refused",
+          "[grasp][handles]") {
+  // Issue 33 item 12: handles were bare counters, so the first set of one solver and the first
+  // of another had equal handles, and release() with the other solver's handle released this
+  // solver's own clamp (remove_load, this solver's own load).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  Solver<Hex8, Linear> a(mesh, soft), b(mesh, soft);
+  const ConstraintHandle clamp_a = a.fix(mesh.node_set("xmin"));
+  const ConstraintHandle clamp_b = b.fix(mesh.node_set("xmin"));
+  const LoadHandle load_a = a.add_gravity(Vec3(0, 0, -9.81));
+  const LoadHandle load_b = b.add_gravity(Vec3(0, 0, -9.81));
+  const Index clamped_dof = 3 * mesh.node_set("xmin")[0];
+  auto refused = [](const char* what, const auto& call) {
+    try {
+      call();
+    } catch (const InvalidArgument& e) {
+      fmt::print("{}: refused: {}\n", what, e.what());
+      return std::string(e.what()).find("another solver") != std::string::npos;
+    }
+    fmt::print("{}: accepted\n", what);
+    return false;
+  };
+  CHECK(refused("a.release(b's clamp)", [&] { a.release(clamp_b); }));
+  CHECK(a.is_constrained(clamped_dof));  // a's own clamp holds
+  CHECK(refused("a.replace(b's clamp)", [&] { a.replace(clamp_b, PrescribedMotion{}); }));
+  CHECK(refused("a.remove_load(b's gravity)", [&] { a.remove_load(load_b); }));
+  // The handles are unequal, though each is its solver's first of its kind.
+  CHECK_FALSE(clamp_a == clamp_b);
+  CHECK_FALSE(load_a == load_b);
+  // Each solver's own handles still work, once.
+  a.remove_load(load_a);
+  a.release(clamp_a);
+  CHECK_FALSE(a.is_constrained(clamped_dof));
+  CHECK(b.is_constrained(clamped_dof));  // b's untouched
+  b.release(clamp_b);
+  b.remove_load(load_b);
+  CHECK_THROWS_AS(a.release(clamp_a), InvalidArgument);
+  CHECK_THROWS_AS(a.remove_load(load_a), InvalidArgument);
+  // A default-constructed handle names nothing.
+  CHECK_THROWS_AS(a.release(ConstraintHandle{}), InvalidArgument);
+  CHECK_THROWS_AS(a.remove_load(LoadHandle{}), InvalidArgument);
+}

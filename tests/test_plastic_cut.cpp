@@ -243,7 +243,7 @@ TEST_CASE("plastic cut: enriched elements stop flowing, the others go on, failur
   for (int k = 0; k < 10; ++k) s.step(0.01);
   REQUIRE(s.state().plastic.version > 0);  // it flows before the cut
   // A slit from y = 0 to 1.1 (extended through the element it ends in: to y = 2 of 4).
-  s.cut(CutPatch(Vec3(2.5, -0.1, -0.1), Vec3(0, 1.2, 0), Vec3(0, 0, 2.2)));
+  const CutHandle slit = s.cut(CutPatch(Vec3(2.5, -0.1, -0.1), Vec3(0, 1.2, 0), Vec3(0, 0, 2.2)));
   const CutReport rep = s.last_cut_report();
   const auto& table0 = s.state().plastic;
   const Index ne = mesh.num_elements();
@@ -292,7 +292,7 @@ TEST_CASE("plastic cut: enriched elements stop flowing, the others go on, failur
   // The slit grown further into the bar (to y = 2.6, so to 3 of 4): the newly enriched elements
   // stop flowing too.
   const Index enriched_before = static_cast<Index>(s.enrichment().elements().size());
-  s.grow_cut(CutHandle{0}, CutPatch(Vec3(2.5, -0.1, -0.1), Vec3(0, 2.7, 0), Vec3(0, 0, 2.2)));
+  s.grow_cut(slit, CutPatch(Vec3(2.5, -0.1, -0.1), Vec3(0, 2.7, 0), Vec3(0, 0, 2.2)));
   const CutReport grown = s.last_cut_report();
   CHECK(grown.cut_elements > 0);
   CHECK(grown.plastic_frozen == static_cast<int>(s.enrichment().elements().size()) - enriched_before);

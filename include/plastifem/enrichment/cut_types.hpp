@@ -4,6 +4,7 @@
 // and its report. Solver.hpp needs only these, so a file that cuts nothing does not compile the
 // X-FEM code (include <plastifem/cutting.hpp> to cut).
 #include <plastifem/core/error.hpp>
+#include <plastifem/core/handle_owner.hpp>
 #include <plastifem/core/types.hpp>
 
 #include <variant>
@@ -37,9 +38,11 @@ struct CutOptions {
   }
 };
 
-/// Identifies a cut applied to a solver (to grow it later).
+/// Identifies a cut applied to a solver (to grow it later), of that solver only
+/// (core/handle_owner.hpp).
 struct CutHandle {
-  int id = -1;
+  int id = -1;              ///< -1: none
+  std::uint32_t owner = 0;  ///< the issuing solver's HandleOwner number for cuts
 };
 
 /// What applying a cut did.

@@ -102,6 +102,45 @@ inline void check_finite_point(const Vec3& p, const char* what) {
   if (!p.allFinite()) fail<InvalidArgument>("{}: coordinates must be finite, got ({}, {}, {})", what, p.x(), p.y(), p.z());
 }
 
+/// The largest coordinate a bounded cut's geometry (a patch's corners, a surface's vertices) may
+/// have. Its distances come from closest_on_triangle, whose barycentric terms (vc = d1 d4 - d3 d2,
+/// each d a dot product of two lengths) are products of four lengths: they overflow, and the
+/// level set turns NaN or lands on the wrong feature, once lengths pass 1.8e308^(1/4) ~ 1.2e77
+/// (a triangle of 1e100 gave |Lambda| = sqrt(DBL_MAX) for a point a unit from it). 1e75 leaves a
+/// factor of ten for the differences and sums of coordinates.
+inline constexpr Scalar max_cut_coordinate = 1e75;
+inline void check_cut_magnitude(const Vec3& p, const char* what) {
+  if (!(p.cwiseAbs().maxCoeff() <= max_cut_coordinate))
+    fail<InvalidArgument>("{}: coordinates up to 1e75 in magnitude are supported (its distances are formed from "
+                          "products of four lengths, which must stay finite), got ({}, {}, {})",
+                          what, p.x(), p.y(), p.z());
+}
+
+/// v / |v| for any finite v, whatever its scale. |v|^2 over- or underflows for components beyond
+/// ~1e154 or below ~1e-154 (|(1e200, 0, 0)| = inf, |(1e-200, 0, 0)| = 0); divided by its largest
+/// component first, v has a norm in [1, sqrt 3], which does neither. Where |v|^2 is well inside
+/// the range, v / |v| directly: the same bits as before the scaled path existed, for every
+/// ordinary normal. Zero for a zero v.
+inline Vec3 unit_direction(const Vec3& v) {
+  const Scalar z = v.squaredNorm();
+  if (z >= 1e-200 && z <= 1e200) return v / std::sqrt(z);
+  const Scalar m = v.cwiseAbs().maxCoeff();
+  if (!(m > 0)) return Vec3::Zero();
+  const Vec3 w = v / m;
+  return w / w.norm();
+}
+
+/// The unit normal of a x b, whatever the edges' scale (for edges of 1e200 the cross product
+/// overflows, for 1e-200 it underflows: then each edge is scaled by its largest component
+/// first). Zero if the edges are parallel or one is zero.
+inline Vec3 unit_cross(const Vec3& a, const Vec3& b) {
+  const Vec3 c = a.cross(b);
+  if (const Scalar z = c.squaredNorm(); z >= 1e-200 && z <= 1e200) return c / std::sqrt(z);
+  const Scalar ma = a.cwiseAbs().maxCoeff(), mb = b.cwiseAbs().maxCoeff();
+  if (!(ma > 0) || !(mb > 0)) return Vec3::Zero();
+  return unit_direction((a / ma).cross(b / mb));
+}
+
 }  // namespace detail
 
 /// An infinite cutting plane through `point` with normal `normal` (not necessarily unit).
@@ -112,8 +151,10 @@ struct CutPlane {
   CutPlane(const Vec3& p, const Vec3& n) : point(p), normal(n) {
     detail::check_finite_point(p, "cut plane point");
     detail::check_finite_point(n, "cut plane normal");
-    if (!(n.norm() > 0)) fail<InvalidArgument>("cut plane: the normal is zero");
-    normal = n.normalized();
+    // Normalised whatever its scale (n.normalized() turned (1e200, 0, 0) into zero and refused
+    // (1e-200, 0, 0) as zero; only the direction matters).
+    normal = detail::unit_direction(n);
+    if (!(normal.norm() > 0)) fail<InvalidArgument>("cut plane: the normal is zero");
   }
   Scalar signed_distance(const Vec3& x) const { return normal.dot(x - point); }
   bool meets(const Box& box) const {
@@ -139,11 +180,18 @@ struct CutPatch {
     detail::check_finite_point(o, "cut patch origin");
     detail::check_finite_point(a, "cut patch edge");
     detail::check_finite_point(b, "cut patch edge");
-    if (!(a.cross(b).norm() > 1e-14 * a.norm() * b.norm()) || !(a.norm() > 0) || !(b.norm() > 0))
+    // Parallel or zero edges span no area at any scale: the sine of their angle, from the edges
+    // scaled by their largest components (|a x b| over- or underflowed for edges of 1e200 or
+    // 1e-200, and refused them as spanning no area).
+    const Vec3 as = detail::unit_direction(a), bs = detail::unit_direction(b);
+    if (!(as.cross(bs).norm() > 1e-14))
       fail<InvalidArgument>("cut patch: its edges ({}, {}, {}) and ({}, {}, {}) span no area", a.x(), a.y(), a.z(), b.x(),
                             b.y(), b.z());
+    for (const Vec3& corner : {o, Vec3(o + a), Vec3(o + b), Vec3(o + a + b)})
+      detail::check_cut_magnitude(corner, "cut patch corner");
   }
-  Vec3 normal() const { return e1.cross(e2).normalized(); }
+  /// The unit normal e1 x e2 / |e1 x e2|, whatever the edges' scale.
+  Vec3 normal() const { return detail::unit_cross(e1, e2); }
   /// The patch's plane's side, and the distance to the patch.
   Scalar signed_distance(const Vec3& x) const {
     const Vec3 n = normal();
@@ -180,16 +228,19 @@ class CutSurface {
   CutSurface(std::vector<Vec3> vertices, std::vector<std::array<Index, 3>> triangles)
       : v_(std::move(vertices)), t_(std::move(triangles)) {
     if (t_.empty()) fail<InvalidArgument>("cut surface: no triangles");
-    for (size_t i = 0; i < v_.size(); ++i)
+    for (size_t i = 0; i < v_.size(); ++i) {
       if (!v_[i].allFinite()) fail<InvalidArgument>("cut surface: vertex {} is not finite", i);
-    Scalar area = 0;
+      detail::check_cut_magnitude(v_[i], "cut surface vertex");
+    }
+    bool any_area = false;
     for (size_t k = 0; k < t_.size(); ++k) {
       for (Index i : t_[k])
         if (i < 0 || static_cast<size_t>(i) >= v_.size())
           fail<InvalidArgument>("cut surface: triangle {} has vertex {} out of range [0, {})", k, i, v_.size());
-      area += face_normal(k).norm();
+      // Whatever its scale: |e1 x e2| of a triangle of 1e-160 underflowed to 0.
+      any_area = any_area || face_unit_normal(k).norm() > 0;
     }
-    if (!(area > 0)) fail<InvalidArgument>("cut surface: all {} triangles have zero area", t_.size());
+    if (!any_area) fail<InvalidArgument>("cut surface: all {} triangles have zero area", t_.size());
     build_pseudo_normals();
     for (const Vec3& p : v_) bounds_.add(p);
     build_tree();
@@ -220,7 +271,7 @@ class CutSurface {
           const Scalar d = (x - p).squaredNorm();
           if (d < best || (d == best && k < best_k)) {
             best = d, best_k = k, closest = p;
-            if (feature == 0) normal = face_normal(k);
+            if (feature == 0) normal = face_normal_[k];
             else if (feature <= 3) normal = edge_normal(t[feature - 1], t[feature % 3]);
             else normal = vertex_normal_[t[feature - 4]];
           }
@@ -261,21 +312,32 @@ class CutSurface {
     const auto& t = t_[k];
     return (v_[t[1]] - v_[t[0]]).cross(v_[t[2]] - v_[t[0]]);  // |n| = twice the area
   }
+  Vec3 face_unit_normal(size_t k) const {
+    const auto& t = t_[k];
+    return detail::unit_cross(v_[t[1]] - v_[t[0]], v_[t[2]] - v_[t[0]]);
+  }
   Vec3 edge_normal(Index a, Index b) const {
     const auto it = edge_normal_.find({std::min(a, b), std::max(a, b)});
     return it == edge_normal_.end() ? Vec3::Zero() : it->second;
   }
   void build_pseudo_normals() {
     vertex_normal_.assign(v_.size(), Vec3::Zero());
+    face_normal_.resize(t_.size());
     for (size_t k = 0; k < t_.size(); ++k) {
+      // Unit normals whatever the triangle's scale (detail::unit_cross; n.normalized() left a
+      // normal that underflowed unnormalised). The face normal the sign test uses is e1 x e2 where
+      // that is well inside the range (the bits it always had; only its direction matters), else
+      // the unit one.
       const Vec3 n = face_normal(k);
-      if (!(n.norm() > 0)) continue;
-      const Vec3 u = n.normalized();
+      const Vec3 u = face_unit_normal(k);
+      const Scalar z = n.squaredNorm();
+      face_normal_[k] = z >= 1e-200 && z <= 1e200 ? n : u;
+      if (!(u.norm() > 0)) continue;
       const auto& t = t_[k];
       for (int c = 0; c < 3; ++c) {
         const Index a = t[c], b = t[(c + 1) % 3], p = t[(c + 2) % 3];
         // Angle-weighted vertex normals; edges get the sum of their faces' unit normals.
-        const Vec3 e1 = (v_[b] - v_[a]).normalized(), e2 = (v_[p] - v_[a]).normalized();
+        const Vec3 e1 = detail::unit_direction(v_[b] - v_[a]), e2 = detail::unit_direction(v_[p] - v_[a]);
         vertex_normal_[a] += std::acos(std::clamp(e1.dot(e2), Scalar(-1), Scalar(1))) * u;
         // (Eigen leaves a default-constructed Vec3 uninitialised: start the sum at zero.)
         edge_normal_.try_emplace({std::min(a, b), std::max(a, b)}, Vec3::Zero()).first->second += u;
@@ -335,6 +397,7 @@ class CutSurface {
   std::vector<Node> nodes_;     ///< the triangle tree, root first
   std::vector<Index> order_;    ///< triangle indices, each leaf's a contiguous range
   std::vector<Vec3> vertex_normal_;
+  std::vector<Vec3> face_normal_;  ///< per triangle, for the sign (build_pseudo_normals)
   std::map<std::pair<Index, Index>, Vec3> edge_normal_;
   Box bounds_;
 };

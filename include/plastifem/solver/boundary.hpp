@@ -22,6 +22,7 @@
 // difference (12 eps |g| / h^2: 3e-7 |g| at h = 1e-4, for paths of unit time scale). Fixed dofs
 // (no path) have v = a = 0.
 #include <plastifem/core/error.hpp>
+#include <plastifem/core/handle_owner.hpp>
 #include <plastifem/core/types.hpp>
 
 #include <algorithm>
@@ -58,9 +59,11 @@ struct PrescribedMotion {
   PrescribedDisplacement acceleration;  ///< empty: differences of `velocity`, or of `displacement`
 };
 
-/// Names a constraint set (Solver::fix, prescribe, grasp) for release() and replace().
+/// Names a constraint set (Solver::fix, prescribe, grasp) for release() and replace(), of the
+/// solver that issued it only (core/handle_owner.hpp).
 struct ConstraintHandle {
-  std::uint32_t id = 0;  ///< 0: none
+  std::uint32_t id = 0;     ///< 0: none
+  std::uint32_t owner = 0;  ///< the issuing Constraints' HandleOwner number
   explicit operator bool() const { return id != 0; }
   friend bool operator==(ConstraintHandle, ConstraintHandle) = default;
 };
@@ -87,7 +90,7 @@ class Constraints {
     sets_.push_back({++next_id_, std::vector<Index>(nodes.begin(), nodes.end()), mask, std::move(motion),
                      std::move(offsets)});
     ++version_;
-    return {next_id_};
+    return {next_id_, owner_.id()};
   }
   /// Removes a set; its dofs become free (or fall back to an earlier set on the same dofs).
   void remove(ConstraintHandle h) {
@@ -101,7 +104,7 @@ class Constraints {
     ++version_;
   }
   bool contains(ConstraintHandle h) const {
-    return std::any_of(sets_.begin(), sets_.end(), [&](const Set& s) { return s.id == h.id; });
+    return h.owner == owner_.id() && std::any_of(sets_.begin(), sets_.end(), [&](const Set& s) { return s.id == h.id; });
   }
   /// Changes whenever a set is added, removed or replaced.
   std::uint64_t version() const { return version_; }
@@ -180,6 +183,10 @@ class Constraints {
     std::vector<Vec3> offsets;  ///< per node, added to the motion's displacement (empty: none)
   };
   std::vector<Set>::iterator find(ConstraintHandle h) {
+    if (h.owner != owner_.id())
+      fail<InvalidArgument>("constraint handle {} {}", h.id,
+                            h.owner == 0 ? "was never issued (a default handle names no constraint set)"
+                                         : "belongs to another solver: a handle names a set of the solver that issued it");
     auto it = std::find_if(sets_.begin(), sets_.end(), [&](const Set& s) { return s.id == h.id; });
     if (it == sets_.end())
       fail<InvalidArgument>("constraint handle {} names no current constraint set (released already?)", h.id);
@@ -200,6 +207,7 @@ class Constraints {
   std::vector<Set> sets_;
   std::uint32_t next_id_ = 0;
   std::uint64_t version_ = 0;
+  HandleOwner owner_;
 };
 
 }  // namespace plastifem

@@ -14,9 +14,11 @@
 
 namespace plastifem {
 
-/// Names a load for Solver::remove_load.
+/// Names a load for Solver::remove_load, of the solver that issued it only
+/// (core/handle_owner.hpp).
 struct LoadHandle {
-  std::uint32_t id = 0;
+  std::uint32_t id = 0;     ///< 0: none
+  std::uint32_t owner = 0;  ///< the issuing Loads' HandleOwner number
   explicit operator bool() const { return id != 0; }
   friend bool operator==(LoadHandle, LoadHandle) = default;
 };
@@ -40,9 +42,13 @@ class Loads {
   LoadHandle add(Definition def, LoadCurve curve, std::string what) {
     loads_.push_back({++next_id_, std::move(def), std::move(curve), std::move(what), Vector()});
     ++version_;
-    return {next_id_};
+    return {next_id_, owner_.id()};
   }
   void remove(LoadHandle h) {
+    if (h.owner != owner_.id())
+      fail<InvalidArgument>("load handle {} {}", h.id,
+                            h.owner == 0 ? "was never issued (a default handle names no load)"
+                                         : "belongs to another solver: a handle names a load of the solver that issued it");
     auto it = std::find_if(loads_.begin(), loads_.end(), [&](const Load& l) { return l.id == h.id; });
     if (it == loads_.end()) fail<InvalidArgument>("load handle {} names no current load (removed already?)", h.id);
     loads_.erase(it);
@@ -162,6 +168,7 @@ class Loads {
   std::uint32_t next_id_ = 0;
   std::uint64_t version_ = 0;
   Built built_;
+  HandleOwner owner_;
 };
 
 }  // namespace plastifem

@@ -19,6 +19,7 @@
 // discarded (if constexpr) with NoEnrichment. Neither axis's headers are included for the
 // inactive policies; the active ones come with <plastifem/plasticity.hpp> and
 // <plastifem/cutting.hpp>.
+#include <plastifem/core/handle_owner.hpp>
 #include <plastifem/core/log.hpp>
 #include <plastifem/enrichment/enrichment_policy.hpp>
 #include <plastifem/mesh/selection.hpp>
@@ -248,6 +249,7 @@ class Solver {
   Statics<E, Elastic, enriched> statics_;
   StateType current_, work_, trial_;
   PlasticHooksType plastic_;
+  HandleOwner cut_owner_;  ///< the number its cut handles carry (a cut handle of another solver is refused)
   std::uint64_t serial_ = 0;
   mutable Vector scratch_;
 };
@@ -629,7 +631,7 @@ CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOption
   int id = -1;
   cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id, PlasticHooksType::rest_positions(current_.plastic));
   cut_applied();
-  return CutHandle{id};
+  return CutHandle{id, cut_owner_.id()};
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -637,7 +639,11 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surface, CutOptions options)
   requires Enrich::active
 {
-  if (h.id < 0) fail<InvalidArgument>("grow_cut: an invalid cut handle");
+  if (h.id < 0 || h.owner == 0) fail<InvalidArgument>("grow_cut: an invalid cut handle (a default handle names no cut)");
+  if (h.owner != cut_owner_.id())
+    fail<InvalidArgument>("grow_cut: cut handle {} belongs to another solver: a handle names a cut of the solver that "
+                          "issued it",
+                          h.id);
   int id = -1;
   cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id, PlasticHooksType::rest_positions(current_.plastic));
   if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) cut_applied();
