@@ -6,6 +6,7 @@
 // against the continuum answer (Richardson extrapolation with the clamp singularity's order).
 #include "catch.hpp"
 #include "eigenvalues.hpp"
+#include "random_elements.hpp"
 #include "moved_mesh.hpp"
 
 #include <plastifem/plastifem.hpp>
@@ -17,35 +18,13 @@
 #include <random>
 
 using namespace plastifem;
+using testing::big_rotation, testing::deformed, testing::distorted_element;
 
 namespace {
 
 const Material rubber{3000, 0.45, 1.0};
 
-template <FiniteElement E>
-ElementNodes<E> distorted_element(std::mt19937& rng) {
-  std::uniform_real_distribution<Scalar> u(-0.1, 0.1);
-  ElementNodes<E> X = E::reference_nodes();
-  for (int a = 0; a < E::num_vertices; ++a) X.col(a) += Vec3(u(rng), u(rng), u(rng));
-  if constexpr (std::is_same_v<E, Tet10>)
-    for (int k = 0; k < 6; ++k) X.col(4 + k) = 0.5 * (X.col(E::edges[k][0]) + X.col(E::edges[k][1]));
-  return X;
-}
-
-template <FiniteElement E>
-ElementNodes<E> deformed(const ElementNodes<E>& X, Scalar delta, std::mt19937& rng) {
-  std::uniform_real_distribution<Scalar> u(-delta, delta);
-  Mat3 G;
-  for (int i = 0; i < 9; ++i) G.data()[i] = u(rng);
-  ElementNodes<E> x = (Mat3::Identity() + G) * X;  // a homogeneous part ...
-  for (int a = 0; a < E::num_nodes; ++a) x.col(a) += 0.3 * Vec3(u(rng), u(rng), u(rng));  // ... and a random one
-  return x;
-}
-
-Mat3 big_rotation() { return Eigen::AngleAxisd(1.1, Vec3(1, -2, 0.5).normalized()).toRotationMatrix(); }
-
 }  // namespace
-
 
 template <class E_, class M_>
 struct Combo {

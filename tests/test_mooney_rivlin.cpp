@@ -16,6 +16,7 @@
 // Printed errors are the measured ones quoted in the tolerances' comments.
 #include "catch.hpp"
 #include "eigenvalues.hpp"
+#include "random_elements.hpp"
 
 #include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
@@ -28,6 +29,7 @@
 #include <string>
 
 using namespace plastifem;
+using testing::big_rotation, testing::deformed, testing::distorted_element;
 
 // The ElasticModel concept on every element, both variants (test_elastic.cpp's catalogue, for
 // this file's model).
@@ -89,8 +91,6 @@ Scalar scalar_newton(Fn f, Scalar x0) {
 
 Mat3 diag(Scalar a, Scalar b, Scalar c) { return Vec3(a, b, c).asDiagonal().toDenseMatrix(); }
 
-Mat3 big_rotation() { return Eigen::AngleAxisd(1.1, Vec3(1, -2, 0.5).normalized()).toRotationMatrix(); }
-
 /// A random deformation gradient I + G, |G_ij| <= delta, rotated: large but not inverted for
 /// delta <= 0.3.
 Mat3 random_F(std::mt19937& rng, Scalar delta) {
@@ -98,26 +98,6 @@ Mat3 random_F(std::mt19937& rng, Scalar delta) {
   Mat3 G;
   for (int i = 0; i < 9; ++i) G.data()[i] = u(rng);
   return big_rotation() * (Mat3::Identity() + G);
-}
-
-template <FiniteElement E>
-ElementNodes<E> distorted_element(std::mt19937& rng) {
-  std::uniform_real_distribution<Scalar> u(-0.1, 0.1);
-  ElementNodes<E> X = E::reference_nodes();
-  for (int a = 0; a < E::num_vertices; ++a) X.col(a) += Vec3(u(rng), u(rng), u(rng));
-  if constexpr (std::is_same_v<E, Tet10>)
-    for (int k = 0; k < 6; ++k) X.col(4 + k) = 0.5 * (X.col(E::edges[k][0]) + X.col(E::edges[k][1]));
-  return X;
-}
-
-template <FiniteElement E>
-ElementNodes<E> deformed(const ElementNodes<E>& X, Scalar delta, std::mt19937& rng) {
-  std::uniform_real_distribution<Scalar> u(-delta, delta);
-  Mat3 G;
-  for (int i = 0; i < 9; ++i) G.data()[i] = u(rng);
-  ElementNodes<E> x = (Mat3::Identity() + G) * X;  // a homogeneous part ...
-  for (int a = 0; a < E::num_nodes; ++a) x.col(a) += 0.3 * Vec3(u(rng), u(rng), u(rng));  // ... and a random one
-  return x;
 }
 
 std::string error_of(const std::function<void()>& f) {
