@@ -719,6 +719,44 @@ TEST_CASE("statics: the plastic state is carried from increment to increment", "
   CHECK(std::abs(one - four) > 1e-6 * one);  // path dependent
 }
 
+TEST_CASE("plastic parameters: a stress_scale whose scaled stress squares past the largest double is refused",
+          "[plasticity]") {
+  // Issue 33 item 5a: stress_scale = 1e300 was accepted; the yield test squares stress_scale x
+  // the stress, (1e300 x 2 mu x strain)^2 = inf, so every point "yielded" with gamma = NaN -> 0
+  // and nothing flowed. The bound 1e100 keeps (stress_scale x stress)^2 finite for any stress
+  // below 1e50 in the user's units (1.8e308 is the largest double), far above any material's.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 1, 1);
+  for (const Scalar scale : {1e300, 1e101, std::numeric_limits<Scalar>::max()}) {
+    PlasticParams p;
+    p.stress_scale = scale;
+    try {
+      Solver<Hex8, Corotational, VertexBlended> s(mesh, soft, {}, p);
+      FAIL_CHECK("stress_scale = " << scale << " accepted");
+    } catch (const InvalidArgument& e) {
+      fmt::print("stress_scale = {:g} refused: {}\n", scale, e.what());
+      CHECK(std::string(e.what()).find("stress_scale") != std::string::npos);
+    }
+  }
+  // Mid-run too, leaving the parameters as they were.
+  Solver<Hex8, Corotational, VertexBlended> s(mesh, soft);
+  PlasticParams bad;
+  bad.stress_scale = 1e300;
+  CHECK_THROWS_AS(s.set_plastic_params(bad), InvalidArgument);
+  CHECK(s.plastic_params().stress_scale == PlasticParams{}.stress_scale);
+  // The bound itself is usable: at stress_scale 1e100 a loaded bar yields with a finite gamma,
+  // nu dt (|s| - tau) / |s| = nu dt = 0.002, since |s| ~ 1e100 x 2 mu x strain dwarfs tau = 1000.
+  PlasticParams big;
+  big.stress_scale = 1e100;
+  Solver<Hex8, Corotational, VertexBlended> b(mesh, soft, {}, big);
+  b.fix(mesh.node_set("xmin"));
+  b.add_traction(mesh.face_set("xmax"), Vec3(30, 0, 0));
+  const StepReport r = b.step(0.01);
+  fmt::print("stress_scale = 1e100: {} points yielded, max gamma {:.3g}\n", r.plastic.points_yielded, r.plastic.max_gamma);
+  CHECK(r.plastic.points_yielded > 0);
+  CHECK(r.plastic.max_gamma == Approx(0.2 * 0.01).epsilon(1e-9));
+  CHECK(b.displacement().allFinite());
+}
+
 TEST_CASE("real-time mode and the lumped mass run plasticity too", "[plasticity]") {
   for (auto mode : {NewmarkMode::Accurate, NewmarkMode::RealTime})
     for (auto mass : {MassKind::Consistent, MassKind::Lumped}) {

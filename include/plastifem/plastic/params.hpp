@@ -20,7 +20,8 @@ struct PlasticParams {
   /// The stress is multiplied by this factor before the yield test and the flow rule (1: the
   /// physical stress, the default). The paper's scenes do not reach their yield stresses with
   /// a physical stress measure (docs/plasticity.md); the examples that reproduce its figures
-  /// say which factor they use.
+  /// say which factor they use. In (0, 1e100]: the yield test squares the scaled stress, which
+  /// must stay finite (see validate()).
   Scalar stress_scale = 1;
 
   // --- plastic rotation (eq. 5-6) ------------------------------------------------------------
@@ -64,7 +65,11 @@ struct PlasticParams {
     };
     check(yield_stress >= 0 && !std::isnan(yield_stress), "yield_stress (tau)", yield_stress, ">= 0, or +inf for none");
     check(flow_rate >= 0 && flow_rate <= 1, "flow_rate (nu)", flow_rate, "in [0, 1], per unit time");
-    check(stress_scale > 0 && std::isfinite(stress_scale), "stress_scale", stress_scale, "finite and > 0");
+    // The yield test squares stress_scale x the stress (|s|^2 = 3/2 |scale dev S|^2): at 1e300
+    // that is inf for any stress, every point "yields" with gamma = nu dt (inf - tau) / inf =
+    // NaN, and nothing flows. Up to 1e100 the square stays finite (below 1.8e308) for stresses
+    // up to 1e50 in the user's units, beyond any material's (steel's modulus is 2e11 Pa).
+    check(stress_scale > 0 && stress_scale <= 1e100, "stress_scale", stress_scale, "in (0, 1e100]");
     check(rotation_yield >= 0 && rotation_yield <= std::numbers::pi, "rotation_yield (tau_R)", rotation_yield,
           "in [0, pi]");
     check(rotation_flow_rate >= 0 && rotation_flow_rate <= 1, "rotation_flow_rate (nu_R)", rotation_flow_rate,
