@@ -5,6 +5,7 @@
 
 #include <random>
 #include <type_traits>
+#include <utility>
 
 namespace plastifem::testing {
 
@@ -33,5 +34,21 @@ ElementNodes<E> deformed(const ElementNodes<E>& X, Scalar delta, std::mt19937& r
 
 /// A rotation by 1.1 rad about a generic axis.
 inline Mat3 big_rotation() { return Eigen::AngleAxisd(1.1, Vec3(1, -2, 0.5).normalized()).toRotationMatrix(); }
+
+/// Central differences with step h of an element model's energy and force at x: the gradient
+/// of W (to compare with the force) and the Jacobian of f (with the tangent).
+template <class M, FiniteElement E, class Data>
+std::pair<ElementVector<E>, ElementMatrix<E>> element_differences(const Data& d, const ElementNodes<E>& x, Scalar h) {
+  ElementVector<E> grad, fp, fm;
+  ElementMatrix<E> jac;
+  for (int i = 0; i < 3 * E::num_nodes; ++i) {
+    ElementNodes<E> xp = x, xm = x;
+    xp.data()[i] += h;
+    xm.data()[i] -= h;
+    grad[i] = (M::template evaluate<E>(d, xp, fp, nullptr) - M::template evaluate<E>(d, xm, fm, nullptr)) / (2 * h);
+    jac.col(i) = (fp - fm) / (2 * h);
+  }
+  return {grad, jac};
+}
 
 }  // namespace plastifem::testing

@@ -48,7 +48,7 @@ TEMPLATE_LIST_TEST_CASE("hyperelastic force = -dW/dx and tangent = df/dx (finite
     // Jacobian is compared with the exact tangent; the projected one the solver uses is
     // checked below to be PSD and equal to it wherever the exact one is already PSD.
     const ElementNodes<E> x = big_rotation() * deformed<E>(X, 0.15, rng);
-    ElementVector<E> f, fp, fm;
+    ElementVector<E> f, fp;
     ElementMatrix<E> K, Kp;
     M::template evaluate<E>(d, x, f, &K, M::TangentKind::Exact);
     M::template evaluate<E>(d, x, fp, &Kp);
@@ -61,16 +61,7 @@ TEMPLATE_LIST_TEST_CASE("hyperelastic force = -dW/dx and tangent = df/dx (finite
     // Central differences, h = 1e-6: truncation ~h^2 |W'''| ~ 1e-12, round-off ~eps |W| / h ~
     // 1e-10 relative: 1e-6 (the issue's bound) has four decades of margin, and a wrong term
     // in P or A is O(1) relative.
-    const Scalar h = 1e-6;
-    ElementVector<E> grad;
-    ElementMatrix<E> jac;
-    for (int i = 0; i < 3 * E::num_nodes; ++i) {
-      ElementNodes<E> xp = x, xm = x;
-      xp.data()[i] += h;
-      xm.data()[i] -= h;
-      grad[i] = (M::template evaluate<E>(d, xp, fp, nullptr) - M::template evaluate<E>(d, xm, fm, nullptr)) / (2 * h);
-      jac.col(i) = (fp - fm) / (2 * h);
-    }
+    const auto [grad, jac] = testing::element_differences<M, E>(d, x, 1e-6);
     INFO(E::name << " " << M::name << " trial " << trial);
     REQUIRE((grad - f).norm() <= 1e-6 * f.norm());
     REQUIRE((jac - K).norm() <= 1e-6 * K.norm());

@@ -296,7 +296,7 @@ TEMPLATE_LIST_TEST_CASE("Mooney-Rivlin elements: force = dW/dx and tangent = df/
     const ElementNodes<E> X = distorted_element<E>(rng);
     const auto d = M::template prepare<E>(X, m);
     const ElementNodes<E> x = big_rotation() * deformed<E>(X, 0.15, rng);
-    ElementVector<E> f, fp, fm;
+    ElementVector<E> f, fp;
     ElementMatrix<E> K, Kp;
     M::template evaluate<E>(d, x, f, &K, TangentKind::Exact);
     M::template evaluate<E>(d, x, fp, &Kp);
@@ -305,16 +305,7 @@ TEMPLATE_LIST_TEST_CASE("Mooney-Rivlin elements: force = dW/dx and tangent = df/
     // Central differences, h = 1e-6 on unit-size elements: truncation ~h^2 |W'''| ~ 1e-12,
     // round-off ~eps |W| / h ~ 1e-10 relative: 1e-6 (test_hyperelastic.cpp's bound) has four
     // decades of margin, and a wrong term in P or A is O(1) relative.
-    const Scalar h = 1e-6;
-    ElementVector<E> grad;
-    ElementMatrix<E> jac;
-    for (int i = 0; i < 3 * E::num_nodes; ++i) {
-      ElementNodes<E> xp = x, xm = x;
-      xp.data()[i] += h;
-      xm.data()[i] -= h;
-      grad[i] = (M::template evaluate<E>(d, xp, fp, nullptr) - M::template evaluate<E>(d, xm, fm, nullptr)) / (2 * h);
-      jac.col(i) = (fp - fm) / (2 * h);
-    }
+    const auto [grad, jac] = testing::element_differences<M, E>(d, x, 1e-6);
     INFO(E::name << " " << M::name << " trial " << trial);
     fmt::print("{} {} trial {}: force against -dW/dx {:.1e}, tangent against df/dx {:.1e}\n", E::name, M::name, trial,
                (grad - f).norm() / f.norm(), (jac - K).norm() / K.norm());
