@@ -845,7 +845,7 @@ TEST_CASE("X-FEM: Heaviside enrichment holds the enriched dofs of constrained no
   CHECK(u.cwiseAbs().maxCoeff() > 1e-3);
 }
 
-TEST_CASE("X-FEM: a cut's normal is normalised whatever its scale; a zero or non-finite one is refused",
+TEST_CASE("X-FEM: a cut's normal is normalised whatever its scale, a zero or non-finite one is refused",
           "[enrichment]") {
   // Issue 33 item 9: the normal (1e200, 0, 0) overflowed |n| (inf: normalised to zero, "separates
   // no part"), (1e-200, 0, 0) underflowed it (0: "the normal is zero"). Scaled by its largest

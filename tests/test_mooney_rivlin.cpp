@@ -234,7 +234,7 @@ TEST_CASE("Mooney-Rivlin point law: P = d psi/dF and A = dP/dF (central differen
   CHECK(worst_sym <= 1e-13);  // a Hessian: symmetric to round-off of its ~20-term entries
 }
 
-TEST_CASE("Mooney-Rivlin point law: linear elasticity with mu = 2 (C10 + C01), K = 2 / D1 at F = I; frame "
+TEST_CASE("Mooney-Rivlin point law: linear elasticity with mu = 2 (C10 + C01), K = 2 / D1 at F = I, frame "
           "indifference",
           "[mooney]") {
   for (const Constants& c : {tissue, negative_c01, negative_c10}) {

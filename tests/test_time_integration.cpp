@@ -218,7 +218,7 @@ TEST_CASE("generalized-alpha is second order: halving dt quarters the error of a
   }
 }
 
-TEST_CASE("generalized-alpha damps the ringing after a sudden release; average acceleration keeps it",
+TEST_CASE("generalized-alpha damps the ringing after a sudden release, average acceleration keeps it",
           "[dynamics][alpha]") {
   // bar90 (SCENES.md) pinched statically by a force on one tip corner node, then released (a
   // grasper letting go): the free vibration that follows rings in the high modes the local load
