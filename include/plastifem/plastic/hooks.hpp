@@ -15,6 +15,8 @@
 //
 // The hooks see the body and the state only through their arguments, so a policy written in
 // a user's file composes with the Solver by giving its own specialisation.
+#include <plastifem/element/element.hpp>
+#include <plastifem/plastic/params.hpp>
 #include <plastifem/plastic/plastic.hpp>
 
 #include <chrono>
