@@ -2,7 +2,7 @@
 # plastifem set-up: installs missing Debian packages, configures, builds, then runs
 #   bash cmake/setup.sh example   the flagship example (writes VTU/PVD into build/out/)
 #   bash cmake/setup.sh test      the test suite through ctest, without the cases tagged [long]
-#                                 (builds the tests only: ~10 min on 2 cores from scratch)
+#                                 (builds the tests only: ~20 min on 2 cores from scratch)
 #   bash cmake/setup.sh test-long the cases tagged [long] (long runs, fine meshes)
 #   bash cmake/setup.sh sanitize  a representative subset of the tests (every element, model and
 #                                 reader) built with AddressSanitizer + UndefinedBehaviorSanitizer
