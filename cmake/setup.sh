@@ -11,10 +11,10 @@
 #                                 installs clang; fuzz/README.md)
 #   bash cmake/setup.sh build-time  what including the toolkit costs the compiler
 #                                 (docs/build_time.md): CPU seconds and peak memory per translation unit
-#   bash cmake/setup.sh bench [step|static|policy] [options]
+#   bash cmake/setup.sh bench [step|static|policy|io] [options]
 #                                 a benchmark (tables + CSV into build/bench/): ms per Newmark
 #                                 step (default), per static solve, or the NoPlasticity /
-#                                 NoEnrichment overhead ratio
+#                                 NoEnrichment overhead ratio, or per VTU write and read
 #   bash cmake/setup.sh study     the accuracy-vs-cost study (docs/study.md): CSV into build/bench/,
 #                                 plot into docs/speed_accuracy.png (~7 min, single-threaded)
 # Environment: BUILD_DIR (default build, or build-sanitize), JOBS (default: number of cores).
@@ -97,7 +97,7 @@ case "$what" in
     bash bench/build_time.sh "$build" ;;
   bench)
     which=step; args=("${@:2}")
-    case "${2:-}" in step|static|policy) which=$2; args=("${@:3}") ;; esac
+    case "${2:-}" in step|static|policy|io) which=$2; args=("${@:3}") ;; esac
     target=bench_$which; [ "$which" = policy ] && target=bench_policy_overhead
     cmake --build "$build" -j "$jobs" --target "$target"
     mkdir -p "$build/bench"
