@@ -956,3 +956,61 @@ TEST_CASE("X-FEM: a cut handle names its own solver's cut: another solver's is r
   b.grow_cut(cut_b, blade(2.0));
   CHECK(b.num_dofs() == a.num_dofs());
 }
+
+TEST_CASE("X-FEM: a cut or any other change made from inside a step is refused, the step leaves the state as it was",
+          "[enrichment]") {
+  // Issue 33 item 8: cut() from a load curve during step() was accepted; the step then differed
+  // from a cut-before-step twin by 2.7e-4, a_n was zeroed, and a step that failed afterwards
+  // kept the cut (528 -> 624 dofs).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 2, 2);
+  using S = Solver<Hex8, Corotational, NoPlasticity, Heaviside>;
+  S s(mesh, Material{3000, 0.45, 1.0});
+  s.fix(mesh.node_set("xmin"));
+  s.add_gravity(Vec3(0, 0, -9.81));
+  s.step(0.01);
+  const auto before = s.state();
+  const Index n = s.num_dofs();
+  // Each change a callback could try: the first call of the curve (inside step) makes it.
+  const std::vector<std::pair<const char*, std::function<void()>>> changes = {
+      {"cut", [&] { s.cut(CutPlane(Vec3(3.4, 0, 0), Vec3(1, 0, 0))); }},
+      {"fix", [&] { s.fix(mesh.node_set("xmax")); }},
+      {"grasp", [&] { s.grasp(mesh.node_set("xmax"), [](Scalar) { return Vec3(0, 0, 0); }); }},
+      {"add_gravity", [&] { s.add_gravity(Vec3(0, 0, -1)); }},
+      {"clear_loads", [&] { s.clear_loads(); }},
+      {"set_state", [&] { s.set_state(before.u, before.v, 0); }},
+      {"set_settings", [&] { s.set_settings(s.settings()); }},
+      {"step", [&] { s.step(0.01); }},
+      {"solve_static", [&] { s.solve_static(); }},
+  };
+  for (const auto& [name, change] : changes) {
+    INFO(name);
+    bool called = false;
+    const LoadHandle h = s.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, 1), [&, f = change](Scalar) {
+      if (!called) called = true, f();
+      return 1.0;
+    });
+    const auto with_load = s.state();
+    std::string err = "(accepted)";
+    try {
+      s.step(0.01);
+    } catch (const InvalidArgument& e) {
+      err = e.what();
+    }
+    CHECK(called);
+    CHECK(err.find("during step()") != std::string::npos);
+    CHECK(s.num_dofs() == n);
+    CHECK(s.state() == with_load);
+    called = true;  // the curve no longer calls back: the solver is usable as before
+    s.remove_load(h);
+  }
+  // The same from solve_static, and the solver still steps.
+  s.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, 1), [&](Scalar) {
+    s.cut(CutPlane(Vec3(3.4, 0, 0), Vec3(1, 0, 0)));
+    return 1.0;
+  });
+  CHECK(refused([&] { s.solve_static(); }, "during step()"));
+  CHECK(s.num_dofs() == n);
+  s.clear_loads();
+  s.step(0.01);
+  CHECK(s.time() > before.t);
+}

@@ -211,6 +211,21 @@ class Solver {
     return s;
   }
   void check_nodes(std::span<const Index> nodes, const char* what) const;
+  /// Refuses a change of the simulation made from inside step() or solve_static().
+  void check_not_solving(const char* what) const {
+    if (solving_)
+      fail<InvalidArgument>("{}: called during step() or solve_static() (from a load curve or a prescribed path); "
+                            "change the simulation between steps",
+                            what);
+  }
+  /// Marks step() and solve_static() as running (solving_) for its lifetime.
+  struct Solving {
+    bool& flag;
+    explicit Solving(bool& f) : flag(f) { flag = true; }
+    ~Solving() { flag = false; }
+    Solving(const Solving&) = delete;
+    Solving& operator=(const Solving&) = delete;
+  };
   static void check_finite(const Vec3& v, const char* what) {
     if (!v.allFinite()) fail<InvalidArgument>("{} must be finite, got ({}, {}, {})", what, v.x(), v.y(), v.z());
   }
@@ -250,6 +265,10 @@ class Solver {
   StateType current_, work_, trial_;
   PlasticHooksType plastic_;
   HandleOwner cut_owner_;  ///< the number its cut handles carry (a cut handle of another solver is refused)
+  /// True while step() or solve_static() runs. A load curve or a prescribed path is called
+  /// during them; one that changes the solver (a cut, a constraint, a load, the state) would
+  /// change the system under the step's feet and outlive a failed step, so it is refused.
+  bool solving_ = false;
   std::uint64_t serial_ = 0;
   mutable Vector scratch_;
 };
@@ -277,6 +296,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::prescribe(std::span<const Index> nodes, PrescribedMotion motion,
                                                                DofMask mask) {
+  check_not_solving("prescribe");
   check_nodes(nodes, "boundary condition");
   const ConstraintHandle h = constraints_.add(nodes, std::move(motion), mask);
   constraints_changed();
@@ -305,6 +325,7 @@ std::vector<Mat3> Solver<E, Elastic, Plastic, Enrich>::element_stress() const {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) {
+  check_not_solving("set_settings");
   validate_settings(s);
   // A new mass or damping changes the balance the committed acceleration satisfied.
   const bool balance_changed = s.mass != settings_.mass || s.rayleigh_mass != settings_.rayleigh_mass ||
@@ -320,6 +341,7 @@ void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::grasp(std::span<const Index> nodes, std::function<Vec3(Scalar)> path) {
+  check_not_solving("grasp");
   check_nodes(nodes, "grasp");
   if (!path) fail<InvalidArgument>("grasp: the path is empty");
   const Vec3 p0 = path(time());
@@ -335,6 +357,7 @@ ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::grasp(std::span<const Inde
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::release(ConstraintHandle h) {
+  check_not_solving("release");
   constraints_.remove(h);
   constraints_changed();
 }
@@ -342,6 +365,7 @@ void Solver<E, Elastic, Plastic, Enrich>::release(ConstraintHandle h) {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::replace(ConstraintHandle h, PrescribedMotion motion) {
+  check_not_solving("replace");
   constraints_.replace(h, std::move(motion));
   constraints_changed();
 }
@@ -404,6 +428,7 @@ LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_traction(const std::vector<F
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::remove_load(LoadHandle h) {
+  check_not_solving("remove_load");
   loads_.remove(h);
   current_.acceleration_known = false;
 }
@@ -411,6 +436,7 @@ void Solver<E, Elastic, Plastic, Enrich>::remove_load(LoadHandle h) {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::clear_loads() {
+  check_not_solving("clear_loads");
   loads_.clear();
   current_.acceleration_known = false;
 }
@@ -418,6 +444,7 @@ void Solver<E, Elastic, Plastic, Enrich>::clear_loads() {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Index Solver<E, Elastic, Plastic, Enrich>::add_dof_slot(Index node) {
+  check_not_solving("add_dof_slot");
   const Index row = body_.dof_map().add_slot(node);
   rebuild();
   return row;
@@ -434,6 +461,7 @@ Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::positions() const {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::set_state(const Vector& u, const Vector& v, Scalar time) {
+  check_not_solving("set_state");
   if (u.size() != num_dofs() || v.size() != num_dofs())
     fail<InvalidArgument>("state vectors need {} entries, got {} and {}", num_dofs(), u.size(), v.size());
   if (!u.allFinite() || !v.allFinite()) fail<InvalidArgument>("state vectors must be finite");
@@ -451,6 +479,7 @@ void Solver<E, Elastic, Plastic, Enrich>::set_state(const Vector& u, const Vecto
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::set_acceleration(const Vector& a) {
+  check_not_solving("set_acceleration");
   if (a.size() != num_dofs() || !a.allFinite())
     fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
   current_.a = a;
@@ -460,6 +489,8 @@ void Solver<E, Elastic, Plastic, Enrich>::set_acceleration(const Vector& a) {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
+  check_not_solving("solve_static");
+  const Solving solving(solving_);
   auto p = parts();
   work_.assign(current_);
   dynamics_.invalidate();  // the system's K is statics' from here
@@ -487,6 +518,7 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
+  check_not_solving("step");
   const auto t0 = std::chrono::steady_clock::now();
   if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
   if (!std::isfinite(current_.t + dt) || current_.t + dt == current_.t)
@@ -494,6 +526,7 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
   if (const Scalar c0 = Newmark{settings_.newmark.beta, settings_.newmark.gamma, dt}.c0(); !std::isfinite(c0))
     fail<InvalidArgument>("time step dt = {} is too small: the Newmark coefficient 1 / (beta dt^2) = {} overflows", dt,
                           c0);
+  const Solving solving(solving_);
   auto p = parts();
   StepReport r;
   try {
@@ -605,6 +638,7 @@ void Solver<E, Elastic, Plastic, Enrich>::constraints_changed() {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename Loads<E>::Definition def, LoadCurve curve, std::string what) {
+  check_not_solving("adding a load");
   const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
   loads_.build_last(mesh(), enriched_body_force());
   current_.acceleration_known = false;
@@ -614,6 +648,7 @@ LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename Loads<E>::Defi
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::set_plastic_params(const PlasticParamsType& p) {
+  check_not_solving("set_plastic_params");
   plastic_.set_params(p, current_.plastic);
 }
 
@@ -628,6 +663,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOptions options)
   requires Enrich::active
 {
+  check_not_solving("cut");
   int id = -1;
   cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id, PlasticHooksType::rest_positions(current_.plastic));
   cut_applied();
@@ -639,6 +675,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surface, CutOptions options)
   requires Enrich::active
 {
+  check_not_solving("grow_cut");
   if (h.id < 0 || h.owner == 0) fail<InvalidArgument>("grow_cut: an invalid cut handle (a default handle names no cut)");
   if (h.owner != cut_owner_.id())
     fail<InvalidArgument>("grow_cut: cut handle {} belongs to another solver: a handle names a cut of the solver that "
