@@ -417,10 +417,11 @@ class ElementFlow {
   }
 
   /// `X`, `x`: rest and current nodes; `V0`: the element's original volume, `beta` its rest
-  /// volume over V0, `q0` its original shape quality (check_shape).
+  /// volume over V0, `q0` its original shape quality (check_shape); `frame`: the rigid frame
+  /// the plastic rotation is measured against (PlasticParams::RotationFrame; I for World).
   static FlowResult run(const Points& pts, const FlowGradients<E, gauss>& grad, const typename Elastic::Law& law,
-                        const Material& m, const PlasticParams& prm, Scalar dt, const ElementNodes<E>& X,
-                        const ElementNodes<E>& x,
+                        const Material& m, const PlasticParams& prm, Scalar dt, const Mat3& frame,
+                        const ElementNodes<E>& X, const ElementNodes<E>& x,
                         Scalar V0, Scalar beta, Scalar q0, const ElementPlasticEntries& en, const ElementPlasticEntries& out,
                         ElementNodes<E>& z, PlasticReport& rep) {
     const bool stretch = prm.stretch_active(), rotate = prm.rotation_active() && en.tau_R;
@@ -434,6 +435,27 @@ class ElementFlow {
     if (need_vertices) {
       F_o = times<E>(x, grad.G[N]);
       for (int a = 0; a < N; ++a) Fbar[a] = constant_gradient ? F_o : times<E>(x, grad.G[a]);
+    }
+
+    // --- no flow from an inverted configuration: where det F <= 0 at a corner or a flow point
+    // (or, with plastic rotation, at a blended vertex gradient) the stress is the elastic model's extension beyond its
+    // physical range (the corotational one is defined there) and the element's rotation is not
+    // its material's; a rest shape built from it would carry the inversion into the material
+    // mesh. The element waits, counted, until it is not inverted.
+    std::array<Mat3, P> F_point;
+    for (int k = 0; k < P; ++k) {
+      if constexpr (gauss) F_point[k] = grad.gauss_gradient(x, k);
+      else F_point[k] = Fbar[k];
+    }
+    {
+      bool inverted = !(check_shape<E>(x).min_scaled_jacobian > 0);  // at a corner
+      for (int k = 0; k < P && !inverted; ++k) inverted = !(F_point[k].determinant() > 0);
+      if (rotate)
+        for (int a = 0; a < N && !inverted; ++a) inverted = !(Fbar[a].determinant() > 0);
+      if (inverted) {
+        ++rep.inverted_elements;
+        return FlowResult::Unchanged;
+      }
     }
 
     // --- plastic stretch at the flow points (eq. 4) and hardening
@@ -451,9 +473,7 @@ class ElementFlow {
     if (stretch) {
       bool defined = true;  // the stress at the last point that computed one
       for (int k = 0; k < P; ++k) {
-        Mat3 F;
-        if constexpr (gauss) F = grad.gauss_gradient(x, k);
-        else F = Fbar[k];
+        const Mat3& F = F_point[k];
         if (!one_gradient || k == 0) {
           Mat3 dev;
           defined = deviatoric_flow_stress<Elastic>(law, m, F, dev);
@@ -527,12 +547,15 @@ class ElementFlow {
         ++rep.rotations_yielded;
         rep.max_rotation = std::max(rep.max_rotation, w.norm());
       };
+      // The power is taken of the rotation relative to the rigid frame, frame^T R: a rotation
+      // Q superposed on the whole motion turns both (Q R, Q frame) and cancels. With the World
+      // frame (frame = I exactly) the product is R bit for bit: the paper's R^eta.
       if constexpr (PerVertexRotation) {
-        for (int a = 0; a < N; ++a) flow_rotation(a, Rbar[a], phi[a]);
+        for (int a = 0; a < N; ++a) flow_rotation(a, frame.transpose() * Rbar[a], phi[a]);
       } else {
         Scalar phi_max = 0;
         for (int a = 0; a < N; ++a) phi_max = std::max(phi_max, phi[a]);
-        flow_rotation(0, R_o, phi_max);
+        flow_rotation(0, frame.transpose() * R_o, phi_max);
       }
     }
 

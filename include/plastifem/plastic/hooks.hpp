@@ -17,6 +17,7 @@
 // a user's file composes with the Solver by giving its own specialisation.
 #include <plastifem/element/element.hpp>
 #include <plastifem/plastic/params.hpp>
+#include <plastifem/core/log.hpp>
 #include <plastifem/plastic/plastic.hpp>
 
 #include <chrono>
@@ -24,6 +25,16 @@
 #include <vector>
 
 namespace plastifem {
+
+/// After a committed step or static solve: a note (core/log.hpp) when the shape safeguard
+/// switched elements' plasticity off, so that a body that stops flowing says so.
+inline void note_switched_off(const PlasticReport& r, Scalar t, Index num_elements) {
+  if (r.switched_off == 0) return;
+  note(fmt::format("t = {}: plasticity switched off in {} element{} whose rest shape would degenerate "
+                   "(PlasticParams::min_rest_quality); {} of {} elements no longer flow{}",
+                   t, r.switched_off, r.switched_off == 1 ? "" : "s", r.elements_off, num_elements,
+                   r.elements_off >= num_elements ? ": the body is elastic from here" : ""));
+}
 
 /// NoPlasticity (and any inactive policy): rest shapes never change.
 template <class Policy, FiniteElement E, class Elastic, bool = Policy::active>

@@ -30,6 +30,18 @@ struct PlasticParams {
   Scalar rotation_yield = std::numbers::pi;
   /// Rotational flow rate nu_R, per unit time, in [0, 1]. 0 (the default): no plastic rotation.
   Scalar rotation_flow_rate = 0;
+  /// What the plastic rotation Rp = R^eta takes a power of (docs/plasticity.md, "Plastic
+  /// rotation and rigid motion").
+  enum class RotationFrame {
+    /// R measured against the tissue's rigid frame, the best-fit rotation of the held nodes
+    /// (or of the whole body when they do not span a plane): invariant to any superposed rigid
+    /// motion, so an organ that is lifted and turned keeps its permanent set. The default.
+    Tissue,
+    /// R as the paper writes it (eq. 5-6), the element's absolute rotation: a body that turns
+    /// as a whole flows. Bit for bit the Tissue frame's result while the held nodes do not move.
+    World,
+  };
+  RotationFrame rotation_frame = RotationFrame::Tissue;
 
   // --- hardening --------------------------------------------------------------------------------
   /// Isotropic hardening kappa >= 0: tau += kappa gamma |s| and tau_R += kappa eta phi per step.
@@ -102,7 +114,11 @@ struct PlasticReport {
   int rotation_clamped = 0;   ///< plastic rotations capped (per step or in total)
   int switched_off = 0;       ///< elements whose plasticity was switched off in this update (shape safeguard)
   int undefined_points = 0;   ///< points skipped: the stress is undefined there (an inverted element)
-  int updates_rejected = 0;   ///< updates dropped whole because the fused rest shape failed its check
+  int inverted_elements = 0;  ///< elements not flowed: inverted (det F <= 0) at a flow point or vertex
+  int updates_rejected = 0;   ///< updates whose rest shapes were dropped because the fused shape failed its check
+                              ///< (the elements that failed it stay switched off, so the next update progresses)
+  int elements_off = 0;       ///< elements whose plasticity is switched off after the update (all of them: the
+                              ///< body no longer flows; the solver logs a note when this grows)
   Scalar max_gamma = 0;       ///< the largest gamma of the update
   Scalar max_rotation = 0;    ///< the largest plastic rotation angle of the update (rad)
   double wall_ms = 0;         ///< time in the plastic updates and in re-preparing the element data after them
@@ -112,6 +128,8 @@ struct PlasticReport {
     elements_changed += o.elements_changed, gamma_clamped += o.gamma_clamped;
     rotation_clamped += o.rotation_clamped, switched_off += o.switched_off;
     undefined_points += o.undefined_points, updates_rejected += o.updates_rejected;
+    inverted_elements += o.inverted_elements;
+    elements_off = std::max(elements_off, o.elements_off);  // a state count: sub-steps only add to it
     max_gamma = std::max(max_gamma, o.max_gamma), max_rotation = std::max(max_rotation, o.max_rotation);
     wall_ms += o.wall_ms;
   }

@@ -20,11 +20,13 @@
 // committed one.
 #include <plastifem/assembly/discretization.hpp>
 #include <plastifem/assembly/shared_by_shape.hpp>
+#include <plastifem/core/polar.hpp>
 #include <plastifem/plastic/flow.hpp>
 #include <plastifem/plastic/fusion.hpp>
 #include <plastifem/plastic/params.hpp>
 #include <plastifem/plastic/table.hpp>
 
+#include <algorithm>
 #include <optional>
 #include <vector>
 
@@ -116,6 +118,9 @@ class Plasticity {
     if (out_.tau_R.size() != table.tau_R.size()) out_.tau_R.resize(table.tau_R.size());
     if (out_.rotation.size() != table.rotation.size()) out_.rotation.resize(table.rotation.size());
     const Vector& rest = table.rest;
+    const Mat3 frame = prm.rotation_active() && prm.rotation_frame == PlasticParams::RotationFrame::Tissue
+                           ? tissue_frame(mesh, u, rest, anchor)
+                           : Mat3::Identity();
     body.assembler().for_each_element(
         [&](Index e) {
           result_[e] = FlowResult::Unchanged;
@@ -127,7 +132,7 @@ class Plasticity {
           const auto en = entries(table, e);
           if (!Flow::may_flow(grads_[e], *law_, body.material(), prm, x, table.volume[e], en)) return;
           for (int a = 0; a < N; ++a) X.col(a) = rest.template segment<3>(3 * c[a]);
-          result_[e] = Flow::run(points_, grads_[e], *law_, body.material(), prm, dt, X, x, V0_[e],
+          result_[e] = Flow::run(points_, grads_[e], *law_, body.material(), prm, dt, frame, X, x, V0_[e],
                                  table.volume[e], q0_[e], en, entries(out_, e), z_[e], reports_[e]);
         },
         threads);
@@ -137,25 +142,19 @@ class Plasticity {
       changed_[e] = result_[e] == FlowResult::Changed;
       any = any || result_[e] != FlowResult::Unchanged;
     }
-    if (!any) return rep;
+    if (!any) {
+      rep.elements_off = count_off(table);
+      return rep;
+    }
 
     std::vector<char>& off = off_new_;
     off.assign(table.off.begin(), table.off.end());
     for (Index e = 0; e < ne; ++e)
       if (result_[e] == FlowResult::Refused) off[e] = PlasticTable::switched_off, ++rep.switched_off;
-    if (!fusion_built_) {
-      // The nodes of elements a cut enriched are held (fusion.hpp): those elements keep their
-      // rest shapes.
-      std::vector<char> frozen(mesh.num_nodes(), 0);
-      for (Index e = 0; e < ne; ++e)
-        if (table.off[e] == PlasticTable::cut)
-          for (Index i : mesh.element(e)) frozen[i] = 1;
-      fusion_.build(mesh, frozen);
-      fusion_built_ = true;
-    }
     // Fuse, check, and redo without the elements the fusion would degenerate.
     bool accepted = false;
     for (int round = 0; round < 3 && !accepted; ++round) {
+      fit_fusion(mesh, off);
       rest_new_ = rest;
       bool changes = false;
       for (Index e = 0; e < ne; ++e) changes = changes || changed_[e];
@@ -173,7 +172,12 @@ class Plasticity {
       }
     }
     if (!accepted) {
+      // The rest shapes stay, but the elements found degenerating stay switched off: the next
+      // update runs without them. (Dropping the switch-offs with the update made the same
+      // update fail again every step, the body silently elastic from then on.)
       ++rep.updates_rejected;
+      table.off.assign(off.begin(), off.end());
+      rep.elements_off = count_off(table);
       return rep;
     }
 
@@ -192,6 +196,7 @@ class Plasticity {
     table.rest.swap(rest_new_);
     table.off.assign(off.begin(), off.end());
     table.version = version;
+    rep.elements_off = count_off(table);
     return rep;
   }
 
@@ -225,6 +230,62 @@ class Plasticity {
   }
 
  private:
+  /// The tissue's rigid frame (PlasticParams::RotationFrame::Tissue): the rotation R that best
+  /// maps the material positions X_i of the held nodes to their current positions x_i (Kabsch:
+  /// the rotation of sum_i (x_i - x_mean)(X_i - X_mean)^T, core/polar.hpp), or of every node
+  /// when the held ones do not span a plane (a free body, one grasped node). Exactly I while
+  /// every held node is where the material mesh has it (a fixed clamp): then the Tissue frame's
+  /// flow is the World frame's bit for bit.
+  static Mat3 tissue_frame(const Mesh<E>& mesh, const Vector& u, const Vector& rest, const std::vector<char>& anchor) {
+    auto fit = [&](bool held_only) -> std::optional<Mat3> {
+      Vec3 X_mean = Vec3::Zero(), x_mean = Vec3::Zero();
+      Index n = 0;
+      bool at_rest = true;
+      for (Index i = 0; i < mesh.num_nodes(); ++i) {
+        if (held_only && !(i < static_cast<Index>(anchor.size()) && anchor[i])) continue;
+        const Vec3 X = rest.template segment<3>(3 * i), x = mesh.node(i) + u.template segment<3>(3 * i);
+        at_rest = at_rest && x == X;
+        X_mean += X, x_mean += x, ++n;
+      }
+      if (n < 3) return std::nullopt;
+      X_mean /= static_cast<Scalar>(n), x_mean /= static_cast<Scalar>(n);
+      Mat3 H = Mat3::Zero(), C = Mat3::Zero();
+      for (Index i = 0; i < mesh.num_nodes(); ++i) {
+        if (held_only && !(i < static_cast<Index>(anchor.size()) && anchor[i])) continue;
+        const Vec3 dX = rest.template segment<3>(3 * i) - X_mean;
+        const Vec3 dx = mesh.node(i) + u.template segment<3>(3 * i) - x_mean;
+        H += dx * dX.transpose(), C += dX * dX.transpose();
+      }
+      // A plane at least: the second invariant of the spread (the sum of its eigenvalues'
+      // pairwise products) is not round-off against the first squared.
+      const Scalar t = C.trace(), i2 = 0.5 * (t * t - (C * C).trace());
+      if (!(i2 > 1e-12 * t * t)) return std::nullopt;
+      if (at_rest) return Mat3::Identity();
+      return ::plastifem::detail::rotation_by_svd(H);
+    };
+    if (auto R = fit(true)) return *R;
+    if (auto R = fit(false)) return *R;
+    return Mat3::Identity();
+  }
+  /// The fusion holds the nodes of every element that does not flow, a cut's (docs/xfem.md) or
+  /// one the shape safeguard switched off, so that those keep their last rest shapes: a
+  /// switched-off element is elastic with its last rest shape, not distorted by its neighbours'
+  /// flow (which failed the shape check in every later update, so none was ever accepted again).
+  /// Refactorised when that set changes (rarely: a cut, a switch-off, a rolled-back step).
+  void fit_fusion(const Mesh<E>& mesh, const std::vector<char>& off) {
+    if (fusion_built_ && fusion_off_ == off) return;
+    std::vector<char> frozen(mesh.num_nodes(), 0);
+    for (Index e = 0; e < mesh.num_elements(); ++e)
+      if (off[e])
+        for (Index i : mesh.element(e)) frozen[i] = 1;
+    fusion_.build(mesh, frozen);
+    fusion_off_ = off;
+    fusion_built_ = true;
+  }
+  /// Elements whose plasticity the shape safeguard switched off (a cut's frozen ones not counted).
+  static int count_off(const PlasticTable& t) {
+    return static_cast<int>(std::count(t.off.begin(), t.off.end(), PlasticTable::switched_off));
+  }
   static ElementPlasticEntries entries(PlasticTable& t, Index e) {
     return {t.tau.data() + static_cast<size_t>(e) * P,
             t.alpha.empty() ? nullptr : t.alpha.data() + static_cast<size_t>(e) * P * 6,
@@ -267,6 +328,7 @@ class Plasticity {
   std::uint64_t synced_version_ = 0;
   MaterialFusion<E> fusion_;
   bool fusion_built_ = false;
+  std::vector<char> fusion_off_;  ///< the table's off flags the fusion was built for
 };
 
 }  // namespace plastifem::plastic

@@ -512,6 +512,7 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
   r.plastic = flow;
   work_.serial = ++serial_;
   current_.swap(work_);
+  note_switched_off(r.plastic, time(), mesh().num_elements());
   return r;
 }
 
@@ -544,6 +545,7 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
   sync_rest_shapes(current_);
   r.plastic.wall_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_sync).count();
   r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  note_switched_off(r.plastic, time(), mesh().num_elements());
   return r;
 }
 
