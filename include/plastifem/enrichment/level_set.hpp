@@ -28,6 +28,7 @@
 // Construction validates: finite coordinates, a non-zero normal, a patch of non-zero area, a
 // surface with at least one triangle of non-zero area and no index out of range.
 #include <plastifem/core/error.hpp>
+#include <plastifem/core/log.hpp>
 #include <plastifem/core/types.hpp>
 #include <plastifem/enrichment/cut_types.hpp>
 
@@ -37,6 +38,7 @@
 #include <limits>
 #include <map>
 #include <numbers>
+#include <string>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -232,21 +234,23 @@ class CutSurface {
       if (!v_[i].allFinite()) fail<InvalidArgument>("cut surface: vertex {} is not finite", i);
       detail::check_cut_magnitude(v_[i], "cut surface vertex");
     }
-    bool any_area = false;
-    for (size_t k = 0; k < t_.size(); ++k) {
+    for (size_t k = 0; k < t_.size(); ++k)
       for (Index i : t_[k])
         if (i < 0 || static_cast<size_t>(i) >= v_.size())
           fail<InvalidArgument>("cut surface: triangle {} has vertex {} out of range [0, {})", k, i, v_.size());
-      // Whatever its scale: |e1 x e2| of a triangle of 1e-160 underflowed to 0.
-      any_area = any_area || face_unit_normal(k).norm() > 0;
-    }
-    if (!any_area) fail<InvalidArgument>("cut surface: all {} triangles have zero area", t_.size());
+    repair();
     build_pseudo_normals();
     for (const Vec3& p : v_) bounds_.add(p);
     build_tree();
   }
   const std::vector<Vec3>& vertices() const { return v_; }
+  /// The triangles after repair (see repair()): degenerate and repeated ones dropped, every
+  /// connected part consistently oriented.
   const std::vector<std::array<Index, 3>>& triangles() const { return t_; }
+  /// Triangles the repair dropped (zero area, or a repeat of another's vertices).
+  int dropped_triangles() const { return dropped_; }
+  /// Triangles the repair turned over to agree with their neighbours.
+  int flipped_triangles() const { return flipped_; }
 
   /// Signed distance by the closest triangle's pseudo-normal (see the file comment).
   Scalar signed_distance(const Vec3& x) const {
@@ -308,6 +312,99 @@ class CutSurface {
   Box bounds() const { return bounds_; }
 
  private:
+  /// What can be repaired is, what cannot is refused naming the triangle (issue 33 item 7):
+  /// - a triangle of zero area (a repeated vertex, collinear or coincident vertices) has no
+  ///   normal; as the closest feature of a point it gave that point the sign of a zero normal
+  ///   (one such triangle flipped the side of 16 nodes): dropped, as is a repeat of another
+  ///   triangle's three vertices;
+  /// - an edge on three or more triangles (a non-manifold sheet) has no one side: refused;
+  /// - neighbours must run through their shared edge in opposite directions (one orientation
+  ///   per connected part): the triangles that disagree with the majority of their part are
+  ///   turned over; a part that cannot be oriented (a Moebius strip) is refused.
+  /// Each repair is announced as a note (core/log.hpp). Self-intersection is not detected.
+  void repair() {
+    const size_t given = t_.size();
+    std::vector<std::array<Index, 3>> kept;
+    std::map<std::array<Index, 3>, size_t> seen;
+    std::vector<size_t> dropped_ids;
+    for (size_t k = 0; k < t_.size(); ++k) {
+      std::array<Index, 3> key = t_[k];
+      std::sort(key.begin(), key.end());
+      // Whatever its scale: |e1 x e2| of a triangle of 1e-160 underflowed to 0.
+      const bool area = key[0] != key[1] && key[1] != key[2] && face_unit_normal(k).norm() > 0;
+      if (!area || !seen.emplace(key, k).second) {
+        dropped_ids.push_back(k);
+        continue;
+      }
+      kept.push_back(t_[k]);
+    }
+    if (kept.empty()) fail<InvalidArgument>("cut surface: all {} triangles have zero area", given);
+    t_.swap(kept);
+    dropped_ = static_cast<int>(dropped_ids.size());
+
+    // Edges and the triangles on them.
+    std::map<std::pair<Index, Index>, std::vector<size_t>> on_edge;
+    for (size_t k = 0; k < t_.size(); ++k)
+      for (int c = 0; c < 3; ++c) {
+        const Index a = t_[k][c], b = t_[k][(c + 1) % 3];
+        auto& list = on_edge[{std::min(a, b), std::max(a, b)}];
+        list.push_back(k);
+        if (list.size() > 2)
+          fail<InvalidArgument>("cut surface: edge ({}, {}) is on {} triangles (triangles {}, {} and {} after "
+                                "dropping degenerate ones): a cut surface must be a manifold, each edge on at most two",
+                                a, b, list.size(), list[0], list[1], list[2]);
+      }
+    // Whether triangle k, turned over or not, runs from a to b.
+    std::vector<char> flip(t_.size(), 0), visited(t_.size(), 0);
+    auto runs = [&](size_t k, Index a, Index b) {
+      const auto& t = t_[k];
+      for (int c = 0; c < 3; ++c)
+        if (t[c] == a) return (t[(c + 1) % 3] == b) != static_cast<bool>(flip[k]);
+      return false;
+    };
+    std::vector<size_t> part, queue;
+    for (size_t start = 0; start < t_.size(); ++start) {
+      if (visited[start]) continue;
+      part.clear(), queue.assign(1, start);
+      visited[start] = 1;
+      while (!queue.empty()) {
+        const size_t k = queue.back();
+        queue.pop_back();
+        part.push_back(k);
+        for (int c = 0; c < 3; ++c) {
+          const Index a = t_[k][c], b = t_[k][(c + 1) % 3];
+          for (size_t j : on_edge[{std::min(a, b), std::max(a, b)}]) {
+            if (j == k) continue;
+            // Consistent: j runs b -> a where k runs a -> b.
+            const bool need_flip = runs(k, a, b) == runs(j, a, b);
+            if (!visited[j]) {
+              if (need_flip) flip[j] = !flip[j];
+              visited[j] = 1;
+              queue.push_back(j);
+            } else if (need_flip) {
+              fail<InvalidArgument>("cut surface: triangles {} and {} cannot be oriented alike (the part they belong "
+                                    "to is not orientable, like a Moebius strip): a cut needs two sides",
+                                    k, j);
+            }
+          }
+        }
+      }
+      // Keep the orientation most of the part's triangles were given.
+      size_t turned = 0;
+      for (size_t k : part) turned += flip[k];
+      if (2 * turned > part.size())
+        for (size_t k : part) flip[k] = !flip[k];
+    }
+    for (size_t k = 0; k < t_.size(); ++k)
+      if (flip[k]) std::swap(t_[k][1], t_[k][2]), ++flipped_;
+    if (dropped_ > 0 || flipped_ > 0) {
+      std::string ids;
+      for (size_t i = 0; i < dropped_ids.size() && i < 10; ++i) ids += fmt::format("{}{}", i ? ", " : "", dropped_ids[i]);
+      note(fmt::format("cut surface repaired: {} of {} triangles dropped (zero area or repeated{}{}{}), {} turned over "
+                       "to agree with their neighbours",
+                       dropped_, given, dropped_ > 0 ? ": " : "", ids, dropped_ids.size() > 10 ? ", ..." : "", flipped_));
+    }
+  }
   Vec3 face_normal(size_t k) const {
     const auto& t = t_[k];
     return (v_[t[1]] - v_[t[0]]).cross(v_[t[2]] - v_[t[0]]);  // |n| = twice the area
@@ -397,6 +494,7 @@ class CutSurface {
   std::vector<Node> nodes_;     ///< the triangle tree, root first
   std::vector<Index> order_;    ///< triangle indices, each leaf's a contiguous range
   std::vector<Vec3> vertex_normal_;
+  int dropped_ = 0, flipped_ = 0;  ///< what repair() did
   std::vector<Vec3> face_normal_;  ///< per triangle, for the sign (build_pseudo_normals)
   std::map<std::pair<Index, Index>, Vec3> edge_normal_;
   Box bounds_;

@@ -251,7 +251,10 @@ class Solver {
     }
     return {};
   }
-  /// Heaviside enrichment: the enriched dofs of constrained nodes, held at zero with them.
+  /// The enriched dofs of constrained nodes, held at zero with them: a constraint on a node
+  /// holds the tissue on both sides of a cut through its support (docs/xfem.md), with either
+  /// enrichment. (Shifted enrichment held only the node's own side, which the sign of the
+  /// cut's normal chose.)
   std::vector<Index> held_enriched_dofs() const;
   CutReport cut_report_;
 
@@ -692,7 +695,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 std::vector<Index> Solver<E, Elastic, Plastic, Enrich>::held_enriched_dofs() const {
   std::vector<Index> held;
-  if constexpr (enriched && !Enrich::shifted) {
+  if constexpr (enriched) {
     const auto& constrained = constraints_.constrained_dofs();
     for (Index i = 0; i < mesh().num_nodes(); ++i) {
       bool any = false;
