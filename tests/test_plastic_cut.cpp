@@ -14,6 +14,7 @@
 //    cut, after a half step has flowed, leaves the state, plastic table included, bit for bit.
 #include "catch.hpp"
 #include "free_piece.hpp"
+#include "rigid_fit.hpp"
 
 #include <plastifem/cutting.hpp>
 #include <plastifem/plasticity.hpp>
@@ -329,13 +330,7 @@ TEST_CASE("plastic cut: a piece cut free keeps its shape but for its own volume 
   auto non_rigid = [&](const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
     Eigen::Matrix3Xd pa(3, static_cast<Index>(far.size())), pb = pa;
     for (size_t k = 0; k < far.size(); ++k) pa.col(static_cast<Index>(k)) = a.col(far[k]), pb.col(static_cast<Index>(k)) = b.col(far[k]);
-    const Vec3 ca = pa.rowwise().mean(), cb = pb.rowwise().mean();
-    Mat3 H = Mat3::Zero();
-    for (Index i = 0; i < pa.cols(); ++i) H += (pb.col(i) - cb) * (pa.col(i) - ca).transpose();
-    const Mat3 R = detail::rotation_by_svd(H);
-    Scalar worst = 0;
-    for (Index i = 0; i < pa.cols(); ++i) worst = std::max(worst, (pb.col(i) - cb - R * (pa.col(i) - ca)).norm());
-    return worst;
+    return test::rigid_fit(pa, pb).non_rigid;
   };
   auto run = [&](Scalar restitution) {
     PlasticParams p = flowing();

@@ -23,6 +23,7 @@
 //  - statics carry the plastic state from increment to increment (path dependence);
 //  - real-time mode and the lumped mass run plasticity too; bad parameters are refused by name.
 #include "catch.hpp"
+#include "rigid_fit.hpp"
 
 #include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
@@ -36,6 +37,8 @@
 #include <stdexcept>
 
 using namespace plastifem;
+using test::RigidFit;
+using test::rigid_fit;
 
 namespace {
 
@@ -85,21 +88,6 @@ Solver<E, M, P> stretch(int nx, int ny, int nz, Scalar force, const PlasticParam
   const int steps = static_cast<int>(std::lround(seconds / 0.01));
   for (int k = 0; k < steps; ++k) s.step(0.01);
   return s;
-}
-
-/// The best rigid fit of point set b to point set a (Kabsch): its rotation angle and the largest
-/// distance of a point of b from the fitted a (the non-rigid part).
-struct RigidFit {
-  Scalar angle, non_rigid;
-};
-RigidFit rigid_fit(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) {
-  const Vec3 ca = a.rowwise().mean(), cb = b.rowwise().mean();
-  Mat3 H = Mat3::Zero();
-  for (Index i = 0; i < a.cols(); ++i) H += (b.col(i) - cb) * (a.col(i) - ca).transpose();
-  const Mat3 R = detail::rotation_by_svd(H);
-  Scalar worst = 0;
-  for (Index i = 0; i < a.cols(); ++i) worst = std::max(worst, (b.col(i) - cb - R * (a.col(i) - ca)).norm());
-  return {Eigen::AngleAxisd(R).angle(), worst};
 }
 
 }  // namespace
