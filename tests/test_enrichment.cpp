@@ -1159,3 +1159,21 @@ TEST_CASE("X-FEM: a constraint on a cut node holds both sides, with either enric
   CHECK(std::abs(ls.first - lh.first) <= 1e-6 * lh.first);
   CHECK(std::abs(ls.second - lh.second) <= 1e-6 * lh.second);
 }
+
+TEST_CASE("X-FEM: growing a cut to a surface that does not contain it is refused", "[enrichment]") {
+  // Issue 33 item 7: grow_cut with a disjoint surface was accepted: the old cut stayed, a second
+  // opened under the same handle, and the piece between hung on neither.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 2, 3);
+  Solver<Hex8, Corotational, NoPlasticity, Heaviside> s(mesh, Material{3000, 0.45, 1.0});
+  s.fix(mesh.node_set("xmin"));
+  const CutHandle h = s.cut(CutPatch(Vec3(2.55, -0.1, 3.1), Vec3(0, 2.2, 0), Vec3(0.1, 0, -1.0)));
+  const Index n = s.num_dofs();
+  const auto before = s.state();
+  CHECK(refused([&] { s.grow_cut(h, CutPatch(Vec3(4.55, -0.1, 3.1), Vec3(0, 2.2, 0), Vec3(0.1, 0, -2.0))); },
+                "must contain the old one"));
+  CHECK(s.num_dofs() == n);
+  CHECK(s.state() == before);
+  // The blade moved on from where it was: accepted.
+  s.grow_cut(h, CutPatch(Vec3(2.55, -0.1, 3.1), Vec3(0, 2.2, 0), Vec3(0.1, 0, -2.0)));
+  CHECK(s.num_dofs() > n);
+}

@@ -111,6 +111,22 @@ class Enrichment {
       }
       return phi[i];
     };
+    // A growing cut's surface contains the old one (the blade moved on): every element the cut
+    // crosses must still meet it. A disjoint surface would leave the old cut where it was and
+    // open a second one under the same id (the piece between hung on neither).
+    if (id >= 0)
+      for (Index e = 0; e < ne; ++e)
+        if (const Element* old = element(e); old && old->cut == c && old->num_sides == 2) {
+          const ElementNodes<E> X = mesh.element_nodes(e);
+          Box b;
+          Scalar h = std::numeric_limits<Scalar>::max();
+          for (int a = 0; a < N; ++a) b.add(X.col(a));
+          for (const auto& ed : E::edges) h = std::min(h, (X.col(ed[0]) - X.col(ed[1])).norm());
+          if (!cut_meets(surface, b.inflated(std::max<Scalar>(1e-12, opt.snap) * h)))
+            fail<InvalidArgument>("grow_cut: the grown surface does not cross element {}, which cut {} crosses: a "
+                                  "growing cut's surface must contain the old one",
+                                  e, c);
+        }
     // 2. Cut elements.
     std::vector<Index> cut;
     for (Index e = 0; e < ne; ++e) {
