@@ -1,5 +1,6 @@
 #pragma once
-// Small helpers the benchmark programs share: command-line lists.
+// Small helpers the benchmark programs share: command-line lists, medians.
+#include <algorithm>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -12,6 +13,12 @@ inline std::vector<std::string> split(const std::string& s) {
   std::stringstream ss(s);
   for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
   return out;
+}
+
+/// The median of the samples (the upper one of an even count), as every table here reports.
+inline double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
 }
 
 }  // namespace plastifem::bench

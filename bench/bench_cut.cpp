@@ -25,12 +25,10 @@
 
 using namespace plastifem;
 
+using plastifem::bench::median;
+
 namespace {
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 struct Row {
   std::string scene, element, enrichment;

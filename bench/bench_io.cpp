@@ -5,6 +5,8 @@
 #include <plastifem/mesh/generators.hpp>
 #include <plastifem/mesh/io/io.hpp>
 
+#include "bench_common.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -17,12 +19,10 @@
 
 using namespace plastifem;
 
+using plastifem::bench::median;
+
 namespace {
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

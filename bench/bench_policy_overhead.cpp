@@ -45,12 +45,10 @@ using namespace plastifem;
 using plastifem::bench::split;
 using plastifem::bench::BareNewmark;
 
+using plastifem::bench::median;
+
 namespace {
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 double quantile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
   return v[static_cast<size_t>(q * static_cast<double>(v.size() - 1))];
