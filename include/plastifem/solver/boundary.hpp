@@ -26,8 +26,11 @@
 #include <plastifem/core/types.hpp>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -41,6 +44,64 @@ using LoadCurve = std::function<Scalar(Scalar time)>;
 inline LoadCurve ramp_hold_release(Scalar t_ramp, Scalar t_release) {
   return [=](Scalar t) { return t >= t_release ? 0.0 : (t_ramp > 0 ? std::min(t / t_ramp, 1.0) : 1.0); };
 }
+
+/// The path of a grasper driven by a device read between steps (a haptic arm), for
+/// Solver::grasp. A path that returns the latest reading is a staircase in time: its velocity is
+/// 0 inside every step, so the grasp moves without velocity and damping and inertia see none.
+/// Here each reading is a sample (t, p) of the device's position, and the path runs linearly
+/// from sample to sample:
+///
+///   DeviceSamples device(s.time(), arm.position());
+///   const ConstraintHandle h = s.grasp(nodes, device.path());
+///   every frame: device.add(s.time() + dt, arm.position()); s.step(dt);
+///
+/// Read that way, a reading is the position for the end of the coming step (one frame of
+/// latency, as in haptic rendering) and a step sees one straight segment: the grasp moves at
+/// the samples' velocity with zero acceleration, and its path is continuous. Beyond the last
+/// sample the path goes on at the last segment's velocity (a sample that comes late does not
+/// stop the grasp); before the first it stays at the first. A reading for the current time
+/// (add(s.time(), p)) is accepted too, but the path then jumps to it at that time and the step
+/// that follows carries the jump, as any discontinuous path does.
+/// Samples must come in increasing time; only the last few are kept (the path is evaluated
+/// within the current step and a few difference steps before it).
+class DeviceSamples {
+ public:
+  DeviceSamples(Scalar t0, const Vec3& p0) : data_(std::make_shared<Data>()) { add(t0, p0); }
+  /// The device's position p at time t, later than the last sample's.
+  void add(Scalar t, const Vec3& p) {
+    if (!std::isfinite(t) || !p.allFinite())
+      fail<InvalidArgument>("device sample: time {} and position ({}, {}, {}) must be finite", t, p.x(), p.y(), p.z());
+    auto& d = *data_;
+    if (d.count > 0 && !(t > d.time[(d.count - 1) % kept]))
+      fail<InvalidArgument>("device sample: time {} is not after the last sample's, {}", t, d.time[(d.count - 1) % kept]);
+    d.time[d.count % kept] = t, d.position[d.count % kept] = p;
+    ++d.count;
+  }
+  /// The path through the samples (shares them: samples added later move it).
+  std::function<Vec3(Scalar)> path() const {
+    return [data = data_](Scalar t) { return data->at(t); };
+  }
+
+ private:
+  static constexpr int kept = 8;
+  struct Data {
+    std::array<Scalar, kept> time{};
+    std::array<Vec3, kept> position;
+    int count = 0;
+    Vec3 at(Scalar t) const {
+      const int n = std::min(count, kept), last = count - 1;
+      auto T = [&](int k) { return time[k % kept]; };
+      auto P = [&](int k) { return position[k % kept]; };
+      if (n == 1 || t <= T(last - n + 1)) return P(n == 1 ? last : last - n + 1);
+      // The segment [k - 1, k] containing t, or the last one, extended.
+      int k = last;
+      while (k > last - n + 1 && t <= T(k - 1)) --k;
+      const Scalar w = (t - T(k - 1)) / (T(k) - T(k - 1));
+      return Vec3(P(k - 1) + w * (P(k) - P(k - 1)));
+    }
+  };
+  std::shared_ptr<Data> data_;
+};
 
 /// Which displacement components a constraint fixes.
 struct DofMask {
