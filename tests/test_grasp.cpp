@@ -21,6 +21,7 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <tuple>
 
 using namespace plastifem;
 
@@ -383,4 +384,82 @@ TEST_CASE("a grasp driven by device samples moves at their velocity, with the re
   CHECK(v_latest_max == 0);          // the staircase the samples replace
   CHECK(d_latest > 0.1 * scale);
   CHECK(std::isfinite(d_noisy));
+}
+
+TEST_CASE("a prescribed path that jumps: derivatives from after the jump, kinks and smooth paths are not jumps",
+          "[grasp][path]") {
+  // Constraints::evaluate at t with dt = 0.125: h = 1e-4, the differences look back to t - 3h.
+  const std::vector<Index> node{0};
+  auto derivatives = [&](PrescribedDisplacement g, Scalar t) {
+    Constraints c(1);
+    c.add(node, PrescribedMotion{std::move(g), {}, {}}, DofMask{});
+    Vector u = Vector::Zero(3), v = Vector::Zero(3), a = Vector::Zero(3);
+    const Index jumps = c.evaluate(t, 0.125, [](Index) { return Vec3::Zero(); }, u, &v, &a);
+    return std::tuple{jumps, Scalar(u[2]), Scalar(v[2]), Scalar(a[2])};
+  };
+  SECTION("a jump at t, and one inside the differences' window: the path after it, 2 t from t on") {
+    for (const Scalar t_jump : {1.0, 1.0 - 1e-6, 1.0 - 2.9e-4}) {
+      const auto [jumps, u, v, a] = derivatives(
+          [=](Scalar t, const Vec3&) { return Vec3(0, 0, t < t_jump ? 0.5 * t : 2 * t - 1); }, 1.0);
+      INFO("jump at " << t_jump << ": v " << v << ", a " << a);
+      CHECK(jumps == 1);
+      CHECK(u == 1.0);
+      CHECK(std::abs(v - 2) < 1e-9);  // a linear path: exact up to round-off of 1 / h
+      CHECK(std::abs(a) < 1e-3);      // round-off 16 eps / h^2 ~ 4e-7 of the values' size
+    }
+  }
+  SECTION("a jump just before the window, a kink in it, a smooth turn: not jumps") {
+    const auto [j0, u0, v0, a0] =
+        derivatives([](Scalar t, const Vec3&) { return Vec3(0, 0, t < 1 - 3.1e-4 ? 0.0 : 1.0); }, 1.0);
+    CHECK(j0 == 0);
+    CHECK(v0 == 0);
+    CHECK(a0 == 0);
+    const auto [j1, u1, v1, a1] =
+        derivatives([](Scalar t, const Vec3&) { return Vec3(0, 0, 0.5 * std::min(t, 1 - 1.5e-4)); }, 1.0);
+    CHECK(j1 == 0);
+    CHECK(std::isfinite(v1));
+    const auto [j2, u2, v2, a2] =
+        derivatives([](Scalar t, const Vec3&) { return Vec3(0, 0, std::cos(2 * std::numbers::pi * t)); }, 1.0);
+    CHECK(j2 == 0);  // its velocity crosses zero at t = 1
+    CHECK(std::abs(a2 + 4 * std::numbers::pi * std::numbers::pi) < 1e-4);
+  }
+}
+
+TEST_CASE("a grasp whose path jumps: the state after the jump is the path's, and the steps go on",
+          "[grasp][dynamics]") {
+  // Issue 33 item 11's neighbour, item 10: the end of bar90 lifted at 0.5 t until t = 1 and
+  // dropped back to 0 then (t < 1 ? 0.5 t : 0) committed v = -1.92e4 and a = -6.55e8 at t = 1, by
+  // differences across the jump, and the next step failed. The step that ends at the jump now
+  // takes the node's velocity and acceleration from the path after it (0 here) and says so in its
+  // report; the following steps go on from there.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+  const std::vector<Index> end = mesh.node_set("xmax");
+  for (const NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime}) {
+    SolverSettings st;
+    st.newmark.mode = mode;
+    st.rayleigh_mass = 0.2;
+    Solver<Hex8, Corotational> s(mesh, soft, st);
+    s.fix(mesh.node_set("xmin"));
+    s.prescribe(end, [](Scalar t, const Vec3&) { return Vec3(0, 0, t < 1 ? 0.5 * t : 0.0); });
+    Index reported = 0;
+    Scalar v_max = 0, a_max = 0, free_max = 0;
+    for (int k = 1; k <= 16; ++k) {  // dt = 1/8: t = 1 exactly at k = 8
+      const StepReport r = s.step(0.125);
+      reported += r.path_jumps;
+      if (k == 8) CHECK(r.path_jumps == static_cast<Index>(end.size()));
+      for (Index i : end) {
+        v_max = std::max(v_max, std::abs(s.velocity()[3 * i + 2]));
+        a_max = std::max(a_max, std::abs(s.acceleration()[3 * i + 2]));
+        if (k >= 8) CHECK(s.displacement()[3 * i + 2] == 0.0);
+      }
+      free_max = std::max(free_max, s.displacement().cwiseAbs().maxCoeff());
+    }
+    INFO((mode == NewmarkMode::Accurate ? "accurate" : "real time")
+         << ": end nodes' largest |v| " << v_max << ", |a| " << a_max << "; largest |u| " << free_max);
+    CHECK(reported == static_cast<Index>(end.size()));  // at t = 1 only
+    CHECK(std::abs(v_max - 0.5) < 1e-9);  // the path's own before the jump (0 after), up to round-off
+    CHECK(a_max < 1e-4);  // 0 for the linear path, up to round-off 16 eps / h^2
+    CHECK(s.displacement().allFinite());
+    CHECK(free_max < 1.0);  // the body follows the lift of 0.5 and its drop, nothing wild
+  }
 }

@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -190,9 +191,17 @@ class Constraints {
   /// Writes the prescribed displacement at time t into u, and (when v, a are given) the path's
   /// velocity and acceleration, at every constrained dof; other entries are untouched. `dt`
   /// (the step that ends at t) sets the difference step h = min(dt / 16, 1e-4).
+  ///
+  /// Derivatives a motion does not give are one-sided differences over [t - 3h, t], the left
+  /// limits a step that ends at t needs. A path that jumps inside that window (t < 1 ? 0.5 t : 0
+  /// at t = 1) would give a velocity of J / h and an acceleration of J / h^2 there; such a jump is
+  /// found (one_sided) and the derivatives are taken after it instead, by differences over
+  /// [t, t + 3h]: the node jumps with the step and goes on at the path's velocity after the jump.
+  /// Returns the number of constrained nodes whose path jumped so.
   template <class NodePosition>
-  void evaluate(Scalar t, Scalar dt, const NodePosition& X, Vector& u, Vector* v, Vector* a) const {
+  Index evaluate(Scalar t, Scalar dt, const NodePosition& X, Vector& u, Vector* v, Vector* a) const {
     const Scalar h = std::min(dt / 16, Scalar(1e-4));
+    Index jumps = 0;
     for (const Set& s : sets_) {
       for (size_t k = 0; k < s.nodes.size(); ++k) {
         const Index i = s.nodes[k];
@@ -201,28 +210,25 @@ class Constraints {
         if (m.displacement) {
           const Vec3 Xi = X(i);
           g = checked(m.displacement(t, Xi), "displacement", i, t);
+          bool jumped = false;
           if (v || a) {
+            auto at = [&](const PrescribedDisplacement& f, const char* what) {
+              return [&f, &Xi, what, i](Scalar time) { return checked(f(time, Xi), what, i, time); };
+            };
             if (m.velocity) {
               gv = checked(m.velocity(t, Xi), "velocity", i, t);
             } else {
-              // In differences of neighbouring values, so that a constant path gives exactly 0.
-              const Vec3 g1 = checked(m.displacement(t - h, Xi), "displacement", i, t - h);
-              const Vec3 g2 = checked(m.displacement(t - 2 * h, Xi), "displacement", i, t - 2 * h);
-              const Vec3 d1 = g - g1, d2 = g1 - g2;
-              gv = (3 * d1 - d2) / (2 * h);
-              if (a && !m.acceleration) {
-                const Vec3 g3 = checked(m.displacement(t - 3 * h, Xi), "displacement", i, t - 3 * h);
-                ga = (2 * d1 - 3 * d2 + (g2 - g3)) / (h * h);
-              }
+              const OneSided d = one_sided(at(m.displacement, "displacement"), t, g, h, a && !m.acceleration);
+              gv = d.first, ga = d.second, jumped = d.jumped;
             }
             if (m.acceleration) {
               ga = checked(m.acceleration(t, Xi), "acceleration", i, t);
             } else if (a && m.velocity) {
-              const Vec3 v1 = checked(m.velocity(t - h, Xi), "velocity", i, t - h);
-              const Vec3 v2 = checked(m.velocity(t - 2 * h, Xi), "velocity", i, t - 2 * h);
-              ga = (3 * (gv - v1) - (v1 - v2)) / (2 * h);
+              const OneSided d = one_sided(at(m.velocity, "velocity"), t, gv, h, false);
+              ga = d.first, jumped = d.jumped;
             }
           }
+          jumps += jumped;
         }
         if (!s.offsets.empty()) g += s.offsets[k];
         for (int d = 0; d < 3; ++d) {
@@ -233,6 +239,7 @@ class Constraints {
         }
       }
     }
+    return jumps;
   }
 
  private:
@@ -252,6 +259,58 @@ class Constraints {
     if (it == sets_.end())
       fail<InvalidArgument>("constraint handle {} names no current constraint set (released already?)", h.id);
     return it;
+  }
+  /// f's first (and, if `second`, second) derivative at t from one side, f0 = f(t): from the
+  /// left by the second-order differences
+  ///   f'  = (3 d1 - d2) / 2h,   f'' = (2 d1 - 3 d2 + d3) / h^2,   d_k = f(t-(k-1)h) - f(t-kh),
+  /// written in differences of neighbouring values so that a constant path gives exactly 0;
+  /// from the right by their mirror images (e_k = f(t+kh) - f(t+(k-1)h): f' = (3 e1 - e2) / 2h,
+  /// f'' = -(2 e1 - 3 e2 + e3) / h^2) when f jumps inside [t - 3h, t].
+  struct OneSided {
+    Vec3 first = Vec3::Zero(), second = Vec3::Zero();
+    bool jumped = false;
+  };
+  template <class F>
+  static OneSided one_sided(const F& f, Scalar t, const Vec3& f0, Scalar h, bool second) {
+    const Vec3 f1 = f(t - h), f2 = f(t - 2 * h), f3 = second ? f(t - 3 * h) : f2;
+    const std::array<Vec3, 3> d{f0 - f1, f1 - f2, f2 - f3};
+    OneSided r;
+    if (!jump_inside(f, t, h, d, std::max({f0.norm(), f1.norm(), f2.norm(), f3.norm()}))) {
+      r.first = (3 * d[0] - d[1]) / (2 * h);
+      if (second) r.second = (2 * d[0] - 3 * d[1] + d[2]) / (h * h);
+      return r;
+    }
+    const Vec3 g1 = f(t + h), g2 = f(t + 2 * h), g3 = second ? f(t + 3 * h) : g2;
+    const Vec3 e1 = g1 - f0, e2 = g2 - g1, e3 = g3 - g2;
+    r.first = (3 * e1 - e2) / (2 * h);
+    if (second) r.second = -(2 * e1 - 3 * e2 + e3) / (h * h);
+    r.jumped = true;
+    return r;
+  }
+  /// Whether f jumps inside [t - 3h, t], given its differences d_k over [t - kh, t - (k-1)h].
+  /// Over a continuous stretch the differences are about h |f'| each; a jump J makes one of them
+  /// about |J| and the others not. Such an outlier's interval is halved down to adjacent doubles,
+  /// keeping the half that changes more: a continuous f's change shrinks with the interval, a
+  /// jump's stays. (A kink passes the first test at times and is then found continuous.)
+  template <class F>
+  static bool jump_inside(const F& f, Scalar t, Scalar h, const std::array<Vec3, 3>& d, Scalar size) {
+    // Changes within a few thousand ulps of the values are round-off, not jumps.
+    const Scalar noise = 4096 * std::numeric_limits<Scalar>::epsilon() * size;
+    for (int k = 0; k < 3; ++k) {
+      const Scalar dk = d[k].norm(), rest = d[(k + 1) % 3].norm() + d[(k + 2) % 3].norm();
+      if (!(dk > 8 * rest && dk > noise)) continue;
+      Scalar lo = t - (k + 1) * h, hi = t - k * h;
+      Vec3 f_lo = f(lo), f_hi = f(hi);
+      for (int halving = 0; halving < 64; ++halving) {
+        const Scalar mid = lo + (hi - lo) / 2;
+        if (mid <= lo || mid >= hi) break;
+        const Vec3 f_mid = f(mid);
+        if ((f_mid - f_lo).norm() >= (f_hi - f_mid).norm()) hi = mid, f_hi = f_mid;
+        else lo = mid, f_lo = f_mid;
+      }
+      return (f_hi - f_lo).norm() > dk / 2;
+    }
+    return false;
   }
   static void check_motion(const PrescribedMotion& m) {
     if ((m.velocity || m.acceleration) && !m.displacement)

@@ -177,7 +177,7 @@ class Dynamics {
     path_.a.setZero();
     // Every set writes its dofs (a fixed one zeros: its dofs may have been moved by a set
     // released since).
-    if (!p.constraints.empty()) p.constraints.evaluate(t1, dt, position_of(p), path_.u, &path_.v, &path_.a);
+    path_jumps_ = p.constraints.empty() ? 0 : p.constraints.evaluate(t1, dt, position_of(p), path_.u, &path_.v, &path_.a);
   }
   /// Generalized-alpha: h_n = (alpha_m M a_n + alpha_f (f_int(u_n) + D v_n - f_ext(t_n))) / (1 - alpha_f)
   /// (solver/newmark.hpp), the step's fixed share of the balance; f_int_n = f_int(u_n). Uses rhs_
@@ -363,6 +363,7 @@ class Dynamics {
     store(n, trial, dt, serial);
     StepReport rep;
     record(rep, res);
+    rep.path_jumps = path_jumps_;
     rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return rep;
   }
@@ -489,6 +490,7 @@ class Dynamics {
     rep.residual = rnorm;
     rep.relative_residual = rnorm / std::max(scale, Scalar(1e-30));
     rep.convergence = Convergence::OneSolve;
+    rep.path_jumps = path_jumps_;
     rep.linear_converged = lr.converged;
     rep.linear_relative_residual = lr.relative_residual;
     rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -498,6 +500,7 @@ class Dynamics {
   Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, damping_, first_increment_, u_rel_;
   Vector history_;  ///< generalized-alpha's h_n for the step under way
   PathValues path_;
+  Index path_jumps_ = 0;  ///< nodes whose path jumps at the step's end (Constraints::evaluate)
   std::uint64_t linearisation_serial_ = 0;  ///< the state f_lin_ and the system's K belong to (0: none)
 };
 

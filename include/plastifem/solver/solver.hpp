@@ -516,6 +516,10 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
   work_.serial = ++serial_;
   current_.swap(work_);
   note_switched_off(r.plastic, time(), mesh().num_elements());
+  if (r.path_jumps > 0)
+    note(fmt::format("t = {}: the prescribed path of {} node(s) jumps at the end of the step; they jump with it and "
+                     "move on at the path's velocity after the jump (StepReport::path_jumps)",
+                     time(), r.path_jumps));
   return r;
 }
 

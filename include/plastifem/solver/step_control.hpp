@@ -32,6 +32,7 @@ void substep(StateT& work, StateT& trial, Scalar dt, int depth, int max_cuts, St
   total.newton_iterations += r.newton_iterations;
   total.linear_iterations += r.linear_iterations;
   total.predictor_retries += r.predictor_retries;
+  total.path_jumps += r.path_jumps;
   total.residual = r.residual;
   total.relative_residual = r.relative_residual;
   total.convergence = r.convergence;
