@@ -442,15 +442,18 @@ class ElementFlow {
     // physical range (the corotational one is defined there) and the element's rotation is not
     // its material's; a rest shape built from it would carry the inversion into the material
     // mesh. The element waits, counted, until it is not inverted.
-    std::array<Mat3, P> F_point;
-    for (int k = 0; k < P; ++k) {
-      if constexpr (gauss) F_point[k] = grad.gauss_gradient(x, k);
-      else F_point[k] = Fbar[k];
-    }
+    // The flow points' F: the Gauss points' own, or the blended vertex gradients (then P = N).
+    std::array<Mat3, gauss ? P : 0> F_gauss;
+    if constexpr (gauss)
+      for (int k = 0; k < P; ++k) F_gauss[k] = grad.gauss_gradient(x, k);
+    auto F_point = [&](int k) -> const Mat3& {
+      if constexpr (gauss) return F_gauss[k];
+      else return Fbar[k];
+    };
     {
       bool inverted = !(check_shape<E>(x).min_scaled_jacobian > 0);  // at a corner
-      for (int k = 0; k < P && !inverted; ++k) inverted = !(F_point[k].determinant() > 0);
-      if (rotate)
+      for (int k = 0; k < P && !inverted; ++k) inverted = !(F_point(k).determinant() > 0);
+      if (gauss && rotate)  // the vertex family checked them above
         for (int a = 0; a < N && !inverted; ++a) inverted = !(Fbar[a].determinant() > 0);
       if (inverted) {
         ++rep.inverted_elements;
@@ -473,7 +476,7 @@ class ElementFlow {
     if (stretch) {
       bool defined = true;  // the stress at the last point that computed one
       for (int k = 0; k < P; ++k) {
-        const Mat3& F = F_point[k];
+        const Mat3& F = F_point(k);
         if (!one_gradient || k == 0) {
           Mat3 dev;
           defined = deviatoric_flow_stress<Elastic>(law, m, F, dev);

@@ -75,7 +75,7 @@ class Plasticity {
     reports_.assign(ne, PlasticReport{});
     out_ = table;
     rest_new_ = table.rest;
-    fusion_built_ = false;
+    fusion_off_.clear();
     law_.emplace(body.material());
     synced_rest_ = table.rest;
     synced_version_ = 0;
@@ -83,7 +83,7 @@ class Plasticity {
 
   /// The assembler's pattern changed (the dof map grew, a cut froze elements): the fusion is
   /// rebuilt when next needed.
-  void pattern_changed() { fusion_built_ = false; }
+  void pattern_changed() { fusion_off_.clear(); }
 
   /// New parameters mid-run: thresholds keep their hardening, shifted by the change of the
   /// initial yield values; kinematic centres start at zero when kinematic hardening is switched
@@ -238,11 +238,12 @@ class Plasticity {
   /// flow is the World frame's bit for bit.
   static Mat3 tissue_frame(const Mesh<E>& mesh, const Vector& u, const Vector& rest, const std::vector<char>& anchor) {
     auto fit = [&](bool held_only) -> std::optional<Mat3> {
+      auto used = [&](Index i) { return !held_only || (i < static_cast<Index>(anchor.size()) && anchor[i]); };
       Vec3 X_mean = Vec3::Zero(), x_mean = Vec3::Zero();
       Index n = 0;
       bool at_rest = true;
       for (Index i = 0; i < mesh.num_nodes(); ++i) {
-        if (held_only && !(i < static_cast<Index>(anchor.size()) && anchor[i])) continue;
+        if (!used(i)) continue;
         const Vec3 X = rest.template segment<3>(3 * i), x = mesh.node(i) + u.template segment<3>(3 * i);
         at_rest = at_rest && x == X;
         X_mean += X, x_mean += x, ++n;
@@ -251,7 +252,7 @@ class Plasticity {
       X_mean /= static_cast<Scalar>(n), x_mean /= static_cast<Scalar>(n);
       Mat3 H = Mat3::Zero(), C = Mat3::Zero();
       for (Index i = 0; i < mesh.num_nodes(); ++i) {
-        if (held_only && !(i < static_cast<Index>(anchor.size()) && anchor[i])) continue;
+        if (!used(i)) continue;
         const Vec3 dX = rest.template segment<3>(3 * i) - X_mean;
         const Vec3 dx = mesh.node(i) + u.template segment<3>(3 * i) - x_mean;
         H += dx * dX.transpose(), C += dX * dX.transpose();
@@ -273,14 +274,13 @@ class Plasticity {
   /// flow (which failed the shape check in every later update, so none was ever accepted again).
   /// Refactorised when that set changes (rarely: a cut, a switch-off, a rolled-back step).
   void fit_fusion(const Mesh<E>& mesh, const std::vector<char>& off) {
-    if (fusion_built_ && fusion_off_ == off) return;
+    if (!fusion_off_.empty() && fusion_off_ == off) return;
     std::vector<char> frozen(mesh.num_nodes(), 0);
     for (Index e = 0; e < mesh.num_elements(); ++e)
       if (off[e])
         for (Index i : mesh.element(e)) frozen[i] = 1;
     fusion_.build(mesh, frozen);
     fusion_off_ = off;
-    fusion_built_ = true;
   }
   /// Elements whose plasticity the shape safeguard switched off (a cut's frozen ones not counted).
   static int count_off(const PlasticTable& t) {
@@ -327,8 +327,7 @@ class Plasticity {
   Vector rest_new_, synced_rest_, rest_u_;
   std::uint64_t synced_version_ = 0;
   MaterialFusion<E> fusion_;
-  bool fusion_built_ = false;
-  std::vector<char> fusion_off_;  ///< the table's off flags the fusion was built for
+  std::vector<char> fusion_off_;  ///< the table's off flags the fusion was built for (empty: none built)
 };
 
 }  // namespace plastifem::plastic
