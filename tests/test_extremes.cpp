@@ -26,14 +26,27 @@
 //     dynamic steps succeed at once and u is exactly the prescribed one;
 //  8. free flight (no constraint, no load), every element and both mass kinds: linear momentum
 //     conserved to round-off; a spinning corotational body keeps its angular momentum and
-//     energy within the trapezoidal rule's O((omega dt)^2).
+//     energy within the trapezoidal rule's O((omega dt)^2);
+//  9. a plastic bar spinning freely at 10 rad/s, stretch and rotation flowing, both policies:
+//     the material mesh is not turned (the spin is rigid motion), its volume kept to 1e-3;
+// 10. 5000 steps of a cyclic end traction on a plastic bar (issue 33's scene): no update
+//     rejected twice in a row, still flowing at the end, the material volume within 0.1 % with a
+//     restitution of 10/s and 0.5 % with the paper's 1/s (tagged [long]: 37 s);
+// 11. a cut through a badly drawn sheet (a needle, a point, a repeat, a turned triangle) lying
+//     exactly on a plane of nodes, both enrichments: repaired, and the free half falls as the
+//     closed-form damped free fall; a sheet that misses is refused;
+// 12. a grasp following device samples with +-0.02 of noise, accurate and real time: the nodes
+//     are exactly on the samples' path, and after the release the energy falls.
 //
-// All eight run in ~10 s (Release, one core), so none is tagged [long]. The two library defects
+// Cases 1-9, 11 and 12 run in ~12 s (Release, one core). The two library defects
 // found while writing them (stiff bodies refused by the direct solvers, converged steps reported
 // as stagnated) are fixed; their regression tests are at the end of the file.
 #include "catch.hpp"
 #include "moved_mesh.hpp"
+#include "rigid_fit.hpp"
 
+#include <plastifem/cutting.hpp>
+#include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>
@@ -751,4 +764,231 @@ TEST_CASE("extremes 3, report: a step that meets the tolerance is not reported a
     CHECK_FALSE(r.stagnated);
     CHECK(r.convergence == Convergence::Converged);
   }
+}
+
+// --- issue 33: plastic and cut bodies at the extremes -------------------------------------
+
+namespace {
+
+/// The volume of the material (rest) mesh: the sum of its elements' exact volumes.
+Scalar material_volume(const Mesh<Hex8>& mesh, const Eigen::Matrix3Xd& x) {
+  Scalar v = 0;
+  for (Index e = 0; e < mesh.num_elements(); ++e) {
+    ElementNodes<Hex8> X;
+    for (int a = 0; a < 8; ++a) X.col(a) = x.col(mesh.element(e)[a]);
+    v += element_volume<Hex8>(X);
+  }
+  return v;
+}
+
+/// Plastic updates rejected in a row, at most, over a run (a rejection must make progress).
+struct RejectionRun {
+  int total = 0, in_a_row = 0, worst = 0;
+  void add(const PlasticReport& r) {
+    total += r.updates_rejected;
+    in_a_row = r.updates_rejected ? in_a_row + 1 : 0;
+    worst = std::max(worst, in_a_row);
+  }
+};
+
+template <class Policy>
+void plastic_spin() {
+  // bar90 spinning freely at 10 rad/s about its axis, stretch and rotation flow on. The
+  // centrifugal stress (rho omega^2 r^2 ~ 200 at the edges) is above the yield of 20, so the
+  // body flows while it turns 1.6 times.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+  PlasticParams p;
+  p.yield_stress = 20, p.flow_rate = 0.5;
+  p.rotation_yield = 1e-3, p.rotation_flow_rate = 0.5;
+  Solver<Hex8, Corotational, Policy> s(mesh, soft, {}, p);
+  Vector v(s.num_dofs());
+  for (Index i = 0; i < mesh.num_nodes(); ++i) v.segment<3>(3 * i) = Vec3(10, 0, 0).cross(mesh.node(i) - Vec3(5, 1.5, 1.5));
+  s.set_state(Vector::Zero(s.num_dofs()), v);
+  RejectionRun rejected;
+  int yielded = 0;
+  bool finite = true;
+  for (int k = 0; k < 200; ++k) {
+    const PlasticReport r = s.step(0.005).plastic;
+    rejected.add(r);
+    yielded += r.points_yielded;
+    finite = finite && state_finite(s);
+  }
+  const test::RigidFit fit = test::rigid_fit(mesh.nodes(), s.material_positions());
+  const Scalar volume = material_volume(mesh, s.material_positions()) / 90 - 1;
+  fmt::print("extremes 9, {} spinning at 10 rad/s: {} points yielded, material mesh turned {:.2e} rad, non-rigid "
+             "change {:.3g}, material volume {:+.2e}, updates rejected {} (at most {} in a row)\n",
+             Policy::name, yielded, fit.angle, fit.non_rigid, volume, rejected.total, rejected.worst);
+  CHECK(finite);
+  CHECK(yielded > 0);
+  // The spin is rigid motion and does not turn the material mesh (the paper's World frame turns
+  // it by radians, tests/test_plasticity.cpp). What is left is the Coriolis lag of the flowing
+  // cross-section (a real shear: it expands while it turns): measured 5.5e-5 and 4.2e-5 rad
+  // with a non-rigid change of 0.045.
+  CHECK(fit.angle < 1e-3);
+  CHECK(std::abs(volume) < 1e-3);  // isochoric flow, restituted to volume_tolerance 1e-4
+  CHECK(rejected.worst <= 1);
+}
+
+template <class Policy>
+Scalar plastic_cycles(int steps, Scalar restitution) {
+  // Issue 33 item 2's scene: bar90 clamped at x = 0 under gravity, Rayleigh alpha 0.2, the end
+  // face pulled and pushed by a traction of resultant 350 sin(pi t) (set 1 of the stretch
+  // scene, kinematic hardening 0.1, rotation flow on). Cell-centered rejected 2196 of the
+  // updates from step 2488 to 5000 (up to 761 in a row) before rejections kept their
+  // switch-offs. Returns the largest |material volume / 90 - 1| (sampled every 100 steps).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+  PlasticParams p;
+  p.yield_stress = 1000, p.flow_rate = 0.4, p.hardening = 0.2, p.kinematic_hardening = 0.1;
+  p.rotation_yield = 1e-3, p.rotation_flow_rate = 0.5;
+  p.volume_restitution = restitution;
+  SolverSettings st;
+  st.rayleigh_mass = 0.2;
+  Solver<Hex8, Corotational, Policy> s(mesh, soft, st, p);
+  s.fix(mesh.node_set("xmin"));
+  s.add_gravity(Vec3(0, 0, -9.81));
+  s.add_traction(mesh.face_set("xmax"), Vec3(350.0 / 9, 0, 0), [](Scalar t) { return std::sin(std::numbers::pi * t); });
+  RejectionRun rejected;
+  int flowing_late = 0, off = 0;
+  bool finite = true;
+  Scalar volume_worst = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int k = 1; k <= steps; ++k) {
+    const PlasticReport r = s.step(0.01).plastic;
+    rejected.add(r);
+    if (k > steps / 2) flowing_late += r.points_yielded + r.rotations_yielded;
+    off = r.elements_off;
+    finite = finite && state_finite(s);
+    if (k % 100 == 0)
+      volume_worst = std::max(volume_worst, std::abs(material_volume(mesh, s.material_positions()) / 90 - 1));
+  }
+  fmt::print("extremes 10, {}, {} cyclic steps, volume restitution {}/s: flow events in the second half {}, updates "
+             "rejected {} (at most {} in a row), elements off {}, material volume within {:.2e}, {:.0f} ms\n",
+             Policy::name, steps, restitution, flowing_late, rejected.total, rejected.worst, off, volume_worst,
+             ms_since(t0));
+  CHECK(finite);
+  CHECK(flowing_late > 0);      // still flowing in the second half (the rotation; the stretch has hardened)
+  CHECK(rejected.worst <= 1);   // a rejected update makes progress
+  return volume_worst;
+}
+
+template <class Enrich>
+void degenerate_cut() {
+  // A cut sheet at x = 5, exactly through a plane of nodes, drawn badly: its diagonal opened
+  // into a needle of width 1.4e-9 (kept: it has area), a zero-area triangle, a repeated one, and
+  // one turned over. It is repaired and cuts the bar in two. The free half (x > 5) is a free
+  // body under gravity and mass damping alpha: it falls without turning, by
+  // z(t) = -(g / alpha) (t - (1 - e^{-alpha t}) / alpha). A sheet that misses the bar is refused
+  // and changes nothing.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+  const std::vector<Vec3> v{Vec3(5, -1, -1), Vec3(5, 4, -1), Vec3(5, 4, 4), Vec3(5, -1, 4),
+                            Vec3(5, 1.5 + 1e-9, 1.5 - 1e-9)};
+  std::vector<std::string> notes;
+  const NoteHandler previous = set_note_handler([&](const std::string& n) { notes.push_back(n); });
+  //                            ,--- point   ,--- turned  ,--- needle            ,--- repeat
+  const CutSurface sheet(v, {{0, 1, 4}, {3, 3, 3}, {2, 1, 4}, {0, 4, 2}, {0, 2, 3}, {2, 3, 0}});
+  set_note_handler(previous);
+  const Scalar alpha = 0.5, g = 9.81;
+  SolverSettings st;
+  st.rayleigh_mass = alpha;
+  Solver<Hex8, Corotational, NoPlasticity, Enrich> s(mesh, soft, st);
+  s.fix(mesh.node_set("xmin"));
+  s.add_gravity(Vec3(0, 0, -g));
+  const CutSurface away(std::vector<Vec3>{Vec3(20, 0, 0), Vec3(20, 3, 0), Vec3(20, 0, 3)}, {{0, 1, 2}});
+  CHECK_THROWS_AS(s.cut(away), InvalidArgument);
+  CHECK(s.num_dofs() == 3 * mesh.num_nodes());
+  s.cut(sheet);
+  const Index enriched = s.last_cut_report().enriched_nodes;
+  bool finite = true;
+  for (int k = 0; k < 50; ++k) {
+    s.step(0.01);
+    finite = finite && state_finite(s);
+  }
+  const Scalar t = s.time();
+  const Scalar fall = -(g / alpha) * (t - (1 - std::exp(-alpha * t)) / alpha);
+  Scalar off = 0;
+  for (Index i = 0; i < mesh.num_nodes(); ++i)
+    if (mesh.node(i).x() > 5.5) off = std::max(off, (s.displacement(i) - Vec3(0, 0, fall)).norm());
+  fmt::print("extremes 11, degenerate sheet, {}: {} triangles dropped, {} turned; {} nodes enriched; the free half "
+             "fell {:.4f} (closed form {:.4f}), its nodes off by at most {:.1e}\n",
+             Enrich::name, sheet.dropped_triangles(), sheet.flipped_triangles(), enriched,
+             -s.displacement(mesh.node_set("xmax")[0]).z(), -fall, off);
+  CHECK(sheet.dropped_triangles() == 2);
+  CHECK(sheet.flipped_triangles() == 1);
+  CHECK(enriched == 16);  // the nodes on the plane x = 5: the only supports the sheet crosses
+  CHECK(finite);
+  CHECK(off < 1e-3 * std::abs(fall));  // measured 1.4e-5: the trapezoidal rule's O((alpha dt)^2) = 2.5e-5
+}
+
+void noisy_grasp(NewmarkMode mode) {
+  // A grasp of the end of bar90 driven by device readings every 10 ms that lift it to 2 over 1 s,
+  // each with +-0.02 of noise (velocity noise of +-4 between readings), then released: every step
+  // commits a finite state, the grasped nodes are where the samples put them, and after the
+  // release the damped bar's energy falls.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+  const std::vector<Index> end = mesh.node_set("xmax");
+  SolverSettings st;
+  st.newmark.mode = mode;
+  st.rayleigh_mass = 0.5;
+  st.rayleigh_stiffness = 0.01;
+  Solver<Hex8, Corotational> s(mesh, soft, st);
+  s.fix(mesh.node_set("xmin"));
+  DeviceSamples device(0, Vec3::Zero());
+  const auto path = device.path();
+  const ConstraintHandle h = s.grasp(end, path);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<Scalar> noise(-0.02, 0.02);
+  Scalar off_path = 0, energy_at_release = 0, energy_end = 0;
+  bool finite = true;
+  for (int k = 1; k <= 150; ++k) {
+    const Scalar t = 0.01 * k;
+    if (k <= 100) device.add(t, Vec3(0, 0, 2 * t + noise(rng)));
+    if (k == 101) {
+      s.release(h);
+      energy_at_release = s.kinetic_energy() + s.strain_energy();
+    }
+    s.step(0.01);
+    finite = finite && state_finite(s);
+    if (k <= 100)
+      for (Index i : end) off_path = std::max(off_path, std::abs(s.displacement(i).z() - path(s.time()).z()));
+  }
+  energy_end = s.kinetic_energy() + s.strain_energy();
+  fmt::print("extremes 12, noisy device grasp, {}: grasped nodes off their samples by {:.1e}; energy at release {:.4g}, "
+             "0.5 s later {:.4g}\n",
+             mode == NewmarkMode::Accurate ? "accurate" : "real time", off_path, energy_at_release, energy_end);
+  CHECK(finite);
+  CHECK(off_path < 1e-12);  // prescribed: exactly the samples' path, up to the sum's round-off
+  CHECK(energy_end < energy_at_release);
+}
+
+}  // namespace
+
+TEST_CASE("extremes 9: a plastic body spinning at 10 rad/s: its material mesh is not turned, its volume kept",
+          "[extremes][plasticity]") {
+  plastic_spin<VertexBlended>();
+  plastic_spin<CellCentered>();
+}
+
+TEST_CASE("extremes 10: 5000 steps of cyclic plastic load: no silent stop, material volume kept",
+          "[extremes][plasticity][long]") {
+  // Fusing elements that plastic rotation turned by different amounts averages rotated node
+  // positions, which shrinks them (cell-centered proposals are rigid rotations of each element,
+  // so the loss is the fusion's): without plastic rotation the material volume stays within
+  // 7e-6. The restitution (eq. 9) pulls it back at its rate: at the paper's 1/s the volume
+  // stays within 0.27 % (measured 2.7e-3 vertex-blended, 2.3e-3 cell-centered); at 10/s within
+  // 0.03 % (3.0e-4, 2.7e-4), the issue's 0.1 %. docs/plasticity.md, "Volume".
+  CHECK(plastic_cycles<VertexBlended>(5000, 10) < 1e-3);
+  CHECK(plastic_cycles<CellCentered>(5000, 10) < 1e-3);
+  CHECK(plastic_cycles<VertexBlended>(5000, 1) < 5e-3);
+  CHECK(plastic_cycles<CellCentered>(5000, 1) < 5e-3);
+}
+
+TEST_CASE("extremes 11: a cut through a degenerate sheet on a plane of nodes, and one that misses",
+          "[extremes][cut]") {
+  degenerate_cut<Heaviside>();
+  degenerate_cut<ShiftedHeaviside>();
+}
+
+TEST_CASE("extremes 12: a grasp following noisy device samples, accurate and real time", "[extremes][grasp]") {
+  noisy_grasp(NewmarkMode::Accurate);
+  noisy_grasp(NewmarkMode::RealTime);
 }
