@@ -230,6 +230,20 @@ class Dynamics {
     return p.system.free_norm(r_);
   }
 
+  /// Forms A = cm M + K + cd K0 in the system unless it holds that matrix already: a constant
+  /// tangent (Linear) formed with the same coefficients, or `current` (the tangent has not
+  /// changed since it was formed). Returns whether the matrix was kept (the linear solver then
+  /// reuses its factorisation or preconditioner).
+  static bool form_system(Parts& p, Scalar cm, Scalar cd, bool current) {
+    bool same = current;
+    if constexpr (constant_tangent) same = p.system.same_coefficients(cm, cd);
+    if (!same) {
+      if (cd != 0) p.system.rest_stiffness(p.body);
+      p.system.form(cm, cd);
+    }
+    return same;
+  }
+
   // --- accurate mode ----------------------------------------------------------------------
   struct Problem {
     Dynamics& d;
@@ -275,14 +289,8 @@ class Dynamics {
         if (it == 0 && n.warm_start.size() == n.num_dofs()) du = n.warm_start;
         else du.setZero();
         p.system.zero_held(du);
-        bool same;
-        if constexpr (constant_tangent) same = p.system.same_coefficients(cm, cd);
-        else same = !system_stale;
-        if (!same) {
-          if (cd != 0) p.system.rest_stiffness(p.body);
-          p.system.form(cm, cd);
-          system_stale = false;
-        }
+        const bool same = form_system(p, cm, cd, !system_stale);
+        system_stale = false;
         return p.system.linear().solve(p.system.A, d.rhs_, du, tol, same);
       };
       LinearSolveReport lr;
@@ -322,7 +330,9 @@ class Dynamics {
     if (predictor) nm.predictor(n.u, n.v, a_start_, u_);
     else u_ = n.u;
     set_prescribed(p, u_);
-    Problem prob{*this, p, n, nm, nm.mass_weight() * nm.c0() + st.rayleigh_mass * nm.c1(), st.rayleigh_stiffness * nm.c1(),
+    const auto coefficients = nm.matrix(st.rayleigh_mass, st.rayleigh_stiffness);
+    const Scalar cm = coefficients.mass, cd = coefficients.rest_stiffness;
+    Problem prob{*this, p, n, nm, cm, cd,
                  use_exact(st) ? TangentKind::Exact : TangentKind::Projected};
     prob.f_ext_norm = p.system.free_norm(f_ext_);
     NewtonOptions o;
@@ -413,7 +423,8 @@ class Dynamics {
       linearisation_serial_ = n.serial;
     }
     if (nm.weighted()) weighted_history(p, n, nm, f_lin_);
-    const Scalar cm = nm.mass_weight() * nm.c0() + st.rayleigh_mass * nm.c1(), cd = st.rayleigh_stiffness * nm.c1();
+    const auto coefficients = nm.matrix(st.rayleigh_mass, st.rayleigh_stiffness);
+    const Scalar cm = coefficients.mass, cd = coefficients.rest_stiffness;
     const Scalar f_ext_norm = p.system.free_norm(f_ext_);
     Scalar scale = 0;
     auto linear_residual = [&] {
@@ -443,12 +454,7 @@ class Dynamics {
       else
         du_.setZero();
       p.system.zero_held(du_);
-      bool same = false;
-      if constexpr (constant_tangent) same = p.system.same_coefficients(cm, cd);
-      if (!same) {
-        if (cd != 0) p.system.rest_stiffness(p.body);
-        p.system.form(cm, cd);
-      }
+      const bool same = form_system(p, cm, cd, false);
       return p.system.linear().solve(p.system.A, rhs_, du_, st.linear.tolerance, same);
     };
     linear_residual();

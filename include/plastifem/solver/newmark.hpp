@@ -30,6 +30,14 @@ struct Newmark {
   bool weighted() const { return alpha_m != 0 || alpha_f != 0; }
   /// w_m = (1 - alpha_m) / (1 - alpha_f): the inertia's weight in the scaled residual.
   Scalar mass_weight() const { return (1 - alpha_m) / (1 - alpha_f); }
+  /// The Newton matrix dr/du = mass M + K(u) + rest_stiffness K0 for Rayleigh damping
+  /// D = alpha M + beta_R K0: mass = w_m c0 + alpha c1, rest_stiffness = beta_R c1.
+  struct MatrixCoefficients {
+    Scalar mass, rest_stiffness;
+  };
+  MatrixCoefficients matrix(Scalar rayleigh_mass, Scalar rayleigh_stiffness) const {
+    return {mass_weight() * c0() + rayleigh_mass * c1(), rayleigh_stiffness * c1()};
+  }
 
   /// u = u_n + dt v_n + dt^2 / 2 a_n.
   void predictor(const Vector& un, const Vector& vn, const Vector& an, Vector& u) const {
