@@ -96,6 +96,23 @@ struct StepReport {
   Index path_jumps = 0;
   PlasticReport plastic;         ///< what the plastic updates of the step (its sub-steps, increments) did
   double wall_ms = 0;
+
+  /// The report of a step made of sub-steps, one more of which is `r`: counts add up, the
+  /// residual and how it ended are the last sub-step's (the wall time is the caller's).
+  void add_substep(const StepReport& r) {
+    newton_iterations += r.newton_iterations;
+    linear_iterations += r.linear_iterations;
+    predictor_retries += r.predictor_retries;
+    path_jumps += r.path_jumps;
+    residual = r.residual;
+    relative_residual = r.relative_residual;
+    convergence = r.convergence;
+    stagnated = stagnated || r.stagnated;
+    linear_converged = linear_converged && r.linear_converged;
+    linear_relative_residual = r.linear_relative_residual;
+    plastic.add(r.plastic);
+    substeps += 1;
+  }
 };
 
 struct SolverSettings {

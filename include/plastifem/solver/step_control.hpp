@@ -29,18 +29,7 @@ void substep(StateT& work, StateT& trial, Scalar dt, int depth, int max_cuts, St
     return;
   }
   work.swap(trial);
-  total.newton_iterations += r.newton_iterations;
-  total.linear_iterations += r.linear_iterations;
-  total.predictor_retries += r.predictor_retries;
-  total.path_jumps += r.path_jumps;
-  total.residual = r.residual;
-  total.relative_residual = r.relative_residual;
-  total.convergence = r.convergence;
-  total.stagnated = total.stagnated || r.stagnated;
-  total.linear_converged = total.linear_converged && r.linear_converged;
-  total.linear_relative_residual = r.linear_relative_residual;
-  total.plastic.add(r.plastic);
-  total.substeps += 1;
+  total.add_substep(r);
 }
 
 
