@@ -196,8 +196,10 @@ class Constraints {
   /// limits a step that ends at t needs. A path that jumps inside that window (t < 1 ? 0.5 t : 0
   /// at t = 1) would give a velocity of J / h and an acceleration of J / h^2 there; such a jump is
   /// found (one_sided) and the derivatives are taken after it instead, by differences over
-  /// [t, t + 3h]: the node jumps with the step and goes on at the path's velocity after the jump.
-  /// Returns the number of constrained nodes whose path jumped so.
+  /// [t, t + 3h]: the node jumps with the step and goes on at the path's velocity after the jump
+  /// (so a path that jumps must be defined a little beyond t). The same holds for a given
+  /// velocity whose acceleration is differenced. Returns the number of constrained nodes (per
+  /// constraint set holding them) whose path or velocity jumped so.
   template <class NodePosition>
   Index evaluate(Scalar t, Scalar dt, const NodePosition& X, Vector& u, Vector* v, Vector* a) const {
     const Scalar h = std::min(dt / 16, Scalar(1e-4));
@@ -272,7 +274,8 @@ class Constraints {
   };
   template <class F>
   static OneSided one_sided(const F& f, Scalar t, const Vec3& f0, Scalar h, bool second) {
-    const Vec3 f1 = f(t - h), f2 = f(t - 2 * h), f3 = second ? f(t - 3 * h) : f2;
+    // f3 also when only f' is wanted: the jump test needs three differences.
+    const Vec3 f1 = f(t - h), f2 = f(t - 2 * h), f3 = f(t - 3 * h);
     const std::array<Vec3, 3> d{f0 - f1, f1 - f2, f2 - f3};
     OneSided r;
     if (!jump_inside(f, t, h, d, std::max({f0.norm(), f1.norm(), f2.norm(), f3.norm()}))) {
@@ -288,17 +291,25 @@ class Constraints {
     return r;
   }
   /// Whether f jumps inside [t - 3h, t], given its differences d_k over [t - kh, t - (k-1)h].
-  /// Over a continuous stretch the differences are about h |f'| each; a jump J makes one of them
-  /// about |J| and the others not. Such an outlier's interval is halved down to adjacent doubles,
-  /// keeping the half that changes more: a continuous f's change shrinks with the interval, a
-  /// jump's stays. (A kink passes the first test at times and is then found continuous.)
+  /// Over a continuous stretch the three differences change smoothly (by about h^2 |f''| from
+  /// one to the next); a jump J makes one of them stand out from the line through the other two
+  /// by about |J|. Such an outlier's interval is halved down to adjacent doubles, keeping the
+  /// half that changes more: a continuous f's change shrinks with the interval, a jump's stays.
+  /// (A kink passes the first test at times and is then found continuous.)
   template <class F>
   static bool jump_inside(const F& f, Scalar t, Scalar h, const std::array<Vec3, 3>& d, Scalar size) {
-    // Changes within a few thousand ulps of the values are round-off, not jumps.
-    const Scalar noise = 4096 * std::numeric_limits<Scalar>::epsilon() * size;
+    // Changes within a few thousand ulps of the values, or of f's change over an ulp of t, are
+    // round-off, not jumps.
+    const Scalar largest = std::max({d[0].norm(), d[1].norm(), d[2].norm()});
+    const Scalar noise =
+        4096 * std::numeric_limits<Scalar>::epsilon() * (size + largest * std::max(std::abs(t), h) / h);
     for (int k = 0; k < 3; ++k) {
-      const Scalar dk = d[k].norm(), rest = d[(k + 1) % 3].norm() + d[(k + 2) % 3].norm();
-      if (!(dk > 8 * rest && dk > noise)) continue;
+      const Vec3 &dj = d[(k + 1) % 3], &dl = d[(k + 2) % 3];
+      // d_k against the line through the other two: their mean for k = 1, extrapolated for the
+      // ends (d_0 = 2 d_1 - d_2, d_2 = 2 d_1 - d_0).
+      const Vec3 expected = k == 1 ? Vec3(0.5 * (d[0] + d[2])) : Vec3(2 * d[1] - d[k == 0 ? 2 : 0]);
+      const Scalar outlier = (d[k] - expected).norm(), spread = (dj - dl).norm();
+      if (!(outlier > 8 * spread + noise)) continue;
       Scalar lo = t - (k + 1) * h, hi = t - k * h;
       Vec3 f_lo = f(lo), f_hi = f(hi);
       for (int halving = 0; halving < 64; ++halving) {
@@ -308,7 +319,8 @@ class Constraints {
         if ((f_mid - f_lo).norm() >= (f_hi - f_mid).norm()) hi = mid, f_hi = f_mid;
         else lo = mid, f_lo = f_mid;
       }
-      return (f_hi - f_lo).norm() > dk / 2;
+      const Scalar change = (f_hi - f_lo).norm();
+      return change > outlier / 2 && change > noise;
     }
     return false;
   }

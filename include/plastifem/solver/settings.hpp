@@ -90,9 +90,9 @@ struct StepReport {
   int load_steps = 1;            ///< statics: increments used (after automatic cutting)
   int substeps = 1;              ///< dynamics: Newmark sub-steps used (> 1 after automatic step cutting)
   int predictor_retries = 0;     ///< dynamics: sub-steps redone from u_n after failing from the predictor
-  /// dynamics: constrained nodes whose prescribed path jumps at the end of a (sub-)step, summed
-  /// over sub-steps; their velocity and acceleration are the path's after the jump
-  /// (Constraints::evaluate).
+  /// dynamics: constrained nodes whose prescribed path (or given velocity) jumps at the end of a
+  /// (sub-)step, summed over sub-steps; their velocity and acceleration are the path's after
+  /// the jump (Constraints::evaluate).
   Index path_jumps = 0;
   PlasticReport plastic;         ///< what the plastic updates of the step (its sub-steps, increments) did
   double wall_ms = 0;

@@ -516,10 +516,6 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
   work_.serial = ++serial_;
   current_.swap(work_);
   note_switched_off(r.plastic, time(), mesh().num_elements());
-  if (r.path_jumps > 0)
-    note(fmt::format("t = {}: the prescribed path of {} node(s) jumps at the end of the step; they jump with it and "
-                     "move on at the path's velocity after the jump (StepReport::path_jumps)",
-                     time(), r.path_jumps));
   return r;
 }
 
@@ -553,6 +549,11 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
   r.plastic.wall_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_sync).count();
   r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   note_switched_off(r.plastic, time(), mesh().num_elements());
+  if (r.path_jumps > 0)
+    note(fmt::format("t = {}: the prescribed path (or given velocity) of {} constrained node(s) jumps at the end of "
+                     "a step; they jump with it and move on at the path's velocity after the jump "
+                     "(StepReport::path_jumps)",
+                     time(), r.path_jumps));
   return r;
 }
 
