@@ -3,7 +3,9 @@
 
 #include <plastifem/plastifem.hpp>
 
+#include <random>
 #include <set>
+#include <type_traits>
 
 using namespace plastifem;
 
@@ -185,4 +187,44 @@ TEST_CASE("mesh validation gives clear errors", "[mesh][errors]") {
     REQUIRE(contains(error_of([&] { m.add_node_set("s", {0, 9}); }), "node set 's': node 9 out of range"));
     REQUIRE(contains(error_of([&] { m.add_face_set("f", {{0, 4}}); }), "local face 4"));
   }
+}
+
+TEMPLATE_TEST_CASE("point locator: the answers of testing every element, at a fraction of the elements",
+                   "[mesh][locate]", Tet4, Tet10, Hex8) {
+  // Random points in and around the bounding box, points exactly on nodes and edges (shared by
+  // several elements: the lowest-numbered one is the answer either way) and element centres,
+  // on a bar and (Hex8) a curved tube whose elements all differ.
+  auto check = [](const Mesh<TestType>& mesh) {
+    const PointLocator<TestType> locator(mesh);
+    const Vec3 lo = mesh.nodes().rowwise().minCoeff(), hi = mesh.nodes().rowwise().maxCoeff();
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<Scalar> u(-0.1, 1.1);
+    std::vector<Vec3> points;
+    for (int k = 0; k < 2000; ++k) points.push_back(lo.array() + (hi - lo).array() * Eigen::Array3d(u(rng), u(rng), u(rng)));
+    for (Index i = 0; i < mesh.num_nodes(); i += 7) points.push_back(mesh.node(i));
+    for (Index e = 0; e < mesh.num_elements(); e += 5) {
+      const ElementNodes<TestType> X = mesh.element_nodes(e);
+      points.push_back(0.5 * (X.col(0) + X.col(1)));                        // on an edge
+      points.push_back(X * TestType::shape(reference_centre<TestType>()));  // inside
+    }
+    int inside = 0;
+    for (const Vec3& p : points) {
+      const auto slow = locate_point(mesh, p);
+      const auto fast = locator.locate(p);
+      REQUIRE(slow.has_value() == fast.has_value());
+      if (!slow) continue;
+      ++inside;
+      REQUIRE(fast->element == slow->element);
+      REQUIRE(fast->xi == slow->xi);
+    }
+    INFO(mesh.num_elements() << " elements: grid " << locator.grid().transpose() << ", "
+                             << locator.elements_per_cell() << " elements per cell, " << inside << " of "
+                             << points.size() << " points inside");
+    CHECK(inside > 500);  // bar: 1260-1735 of ~2100-2600 points; tube (an annulus in its box): 728 of 2247
+    CHECK(locator.elements_per_cell() < 30);  // a query tests these, not the hundreds of the mesh
+    CHECK_FALSE(locator.locate(Vec3(std::nan(""), 0, 0)).has_value());
+    CHECK_FALSE(locator.locate(Vec3(1e300, 0, 0)).has_value());
+  };
+  check(bar_mesh<TestType>(BoxSpec{12, 4, 3, Vec3(6, 2, 1.5)}));
+  if constexpr (std::is_same_v<TestType, Hex8>) check(tube_hex8(1.0, 1.5, 4.0, 24, 8, 2));
 }
