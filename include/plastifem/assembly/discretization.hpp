@@ -260,11 +260,20 @@ class Discretization {
     }
     return v;
   }
-  /// Cauchy stress per element at its centre.
+  /// Cauchy stress of element e at its centre; in an enriched element, of side s (its nodes
+  /// moved by side s's field x + sum psi^s a: a blending element's one side, a cut element's
+  /// piece s). The standard dofs alone are not the field there (Heaviside enrichment).
+  Mat3 stress(Index e, const Vector& u, int side = 0) const {
+    ElementNodes<E> x = current_nodes(e, u);
+    if constexpr (Enriched)
+      if (const auto* c = enrichment_.element(e)) x = c->side_nodes(x, u, side);
+    return Elastic::template cauchy_stress<E>(data_[e], x, material());
+  }
+  /// Cauchy stress per element at its centre (a cut element's: side 0's, the side the level
+  /// set is >= 0 on).
   std::vector<Mat3> element_stress(const Vector& u) const {
     std::vector<Mat3> s(mesh_.num_elements());
-    for (Index e = 0; e < mesh_.num_elements(); ++e)
-      s[e] = Elastic::template cauchy_stress<E>(data_[e], current_nodes(e, u), material());
+    for (Index e = 0; e < mesh_.num_elements(); ++e) s[e] = stress(e, u);
     return s;
   }
 

@@ -39,6 +39,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <vector>
@@ -64,6 +65,9 @@ class Enrichment {
   const std::vector<Element>& elements() const { return elements_; }
   Index element_of(size_t k) const { return element_index_[k]; }
   int num_cuts() const { return static_cast<int>(cuts_.size()); }
+  /// Counts the cuts applied and grown: what is derived from the cut elements (an embedded
+  /// point's side) is current while it is unchanged.
+  std::uint64_t revision() const { return revision_; }
   /// The level set of cut c at node i (NaN where it was not needed: far from the cut).
   Scalar level_set(int c, Index i) const { return cuts_[c].phi[i]; }
 
@@ -330,6 +334,7 @@ class Enrichment {
       throw;
     }
     applied_id = c;
+    ++revision_;
     rep.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return rep;
   }
@@ -432,6 +437,7 @@ class Enrichment {
   std::vector<Index> element_index_;   ///< elements_[k] is element element_index_[k]
   std::vector<CutRecord> cuts_;
   std::vector<std::vector<Index>> elements_of_;  ///< node -> elements around it (node_elements)
+  std::uint64_t revision_ = 0;
 };
 
 }  // namespace plastifem

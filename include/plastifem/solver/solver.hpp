@@ -186,8 +186,14 @@ class Solver {
   SparseMatrix tangent() const;
   /// Mass matrix (full symmetric storage).
   SparseMatrix mass_matrix() const { return system_.M.to_sparse(); }
-  /// Cauchy stress per element at its centre.
+  /// Cauchy stress per element at its centre (a cut element's: its side 0's).
   std::vector<Mat3> element_stress() const;
+  /// Cauchy stress of element e at its centre; of side s's piece if e is cut (s in {0, 1}).
+  Mat3 stress(Index e, int side = 0) const {
+    if (e < 0 || e >= mesh().num_elements() || side < 0 || side > 1)
+      fail<InvalidArgument>("stress: element {} side {} out of range ([0, {}), 0 or 1)", e, side, mesh().num_elements());
+    return body_.stress(e, current_.u, side);
+  }
   Vector von_mises_stress() const;
   /// Whether a user constraint holds this dof.
   bool is_constrained(Index dof) const { return system_.constrained(dof); }
