@@ -1,4 +1,4 @@
-// Cost of fields at embedded points (enrichment/embedded_points.hpp): a visual surface's
+// Cost of fields at embedded points (embedding/embedded_points.hpp): a visual surface's
 // vertices located once, then their deformed positions asked every step. Points spread over the
 // bar's boundary (as a surface's vertices are), on bar5760 and bar46080, uncut and cut across
 // by a plane (Heaviside: the points of the cut elements read their side's enriched dofs).
@@ -6,7 +6,7 @@
 //
 //   bench_points [--points N] [--repeat R] [--threads 1,2] [--scenes bar5760,bar46080] [--csv FILE]
 #include <plastifem/cutting.hpp>
-#include <plastifem/enrichment/embedded_points.hpp>
+#include <plastifem/embedding/embedded_points.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include "bench_common.hpp"

@@ -1,4 +1,4 @@
-// Points embedded in a body (enrichment/embedded_points.hpp).
+// Points embedded in a body (embedding/embedded_points.hpp).
 //
 // Facts checked:
 //  - isoparametric elements reproduce a linear field exactly: u = A X + b interpolated at random
@@ -15,7 +15,7 @@
 #include "catch.hpp"
 
 #include <plastifem/cutting.hpp>
-#include <plastifem/enrichment/embedded_points.hpp>
+#include <plastifem/embedding/embedded_points.hpp>
 #include <plastifem/plastifem.hpp>
 #include <plastifem/plasticity.hpp>
 

@@ -5,6 +5,7 @@
 #include <plastifem/core/error.hpp>
 #include <plastifem/core/types.hpp>
 #include <plastifem/element/element.hpp>
+#include <plastifem/embedding/embedded_points.hpp>
 #include <plastifem/mesh/generators.hpp>
 #include <plastifem/mesh/mesh.hpp>
 #include <plastifem/mesh/selection.hpp>

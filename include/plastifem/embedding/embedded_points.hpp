@@ -21,7 +21,7 @@
 // cut), so a point follows the tissue as it opens. Cost: one pass over the points reading
 // N nodal vectors each (bench_points: a 20,000-point surface in a few tenths of a ms).
 #include <plastifem/core/parallel.hpp>
-#include <plastifem/enrichment/enrichment.hpp>
+#include <plastifem/assembly/discretization.hpp>  // Enrichment and CutElement, declared (enrichment/)
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/plastic/hooks.hpp>
 
@@ -123,7 +123,7 @@ class EmbeddedPoints {
       Vec3 x = Vec3::Zero();
       for (int a = 0; a < N; ++a) x += shape_[k][a] * u.template segment<3>(3 * c[a]);
       if (const CutElement<E>* cut = enrichment ? enrichment->element(element_[k]) : nullptr)
-        for (const EnrichedDof& d : cut->enriched)
+        for (const auto& d : cut->enriched)
           x += (shape_[k][d.node] * d.psi[side_[k]]) * u.template segment<3>(3 * d.row);
       out.col(k) = x;
     });
@@ -136,7 +136,7 @@ class EmbeddedPoints {
     int best = 0;
     Scalar best_outside = std::numeric_limits<Scalar>::infinity();
     for (int s = 0; s < 2; ++s)
-      for (const ReferenceTet& t : cut.pieces[s]) {
+      for (const auto& t : cut.pieces[s]) {
         Mat3 A;
         for (int j = 0; j < 3; ++j) A.col(j) = t[j + 1] - t[0];
         const Vec3 b = A.partialPivLu().solve(Vec3(xi - t[0]));
