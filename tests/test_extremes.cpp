@@ -43,7 +43,7 @@
 // as stagnated) are fixed; their regression tests are at the end of the file.
 #include "catch.hpp"
 #include "moved_mesh.hpp"
-#include "rigid_fit.hpp"
+#include "material_mesh.hpp"
 
 #include <plastifem/cutting.hpp>
 #include <plastifem/plasticity.hpp>
@@ -58,6 +58,7 @@
 #include <string>
 
 using namespace plastifem;
+using test::material_volume;
 
 namespace {
 
@@ -770,17 +771,6 @@ TEST_CASE("extremes 3, report: a step that meets the tolerance is not reported a
 
 namespace {
 
-/// The volume of the material (rest) mesh: the sum of its elements' exact volumes.
-Scalar material_volume(const Mesh<Hex8>& mesh, const Eigen::Matrix3Xd& x) {
-  Scalar v = 0;
-  for (Index e = 0; e < mesh.num_elements(); ++e) {
-    ElementNodes<Hex8> X;
-    for (int a = 0; a < 8; ++a) X.col(a) = x.col(mesh.element(e)[a]);
-    v += element_volume<Hex8>(X);
-  }
-  return v;
-}
-
 /// Plastic updates rejected in a row, at most, over a run (a rejection must make progress).
 struct RejectionRun {
   int total = 0, in_a_row = 0, worst = 0;
@@ -914,6 +904,10 @@ void degenerate_cut() {
              -s.displacement(mesh.node_set("xmax")[0]).z(), -fall, off);
   CHECK(sheet.dropped_triangles() == 2);
   CHECK(sheet.flipped_triangles() == 1);
+  // The repair is said once, with its counts (a user's sheet changed under them).
+  REQUIRE(notes.size() == 1);
+  CHECK(notes[0].find("cut surface repaired: 2 of 6 triangles dropped") != std::string::npos);
+  CHECK(notes[0].find("1 turned over") != std::string::npos);
   CHECK(enriched == 16);  // the nodes on the plane x = 5: the only supports the sheet crosses
   CHECK(finite);
   CHECK(off < 1e-3 * std::abs(fall));  // measured 1.4e-5: the trapezoidal rule's O((alpha dt)^2) = 2.5e-5

@@ -14,7 +14,7 @@
 //    cut, after a half step has flowed, leaves the state, plastic table included, bit for bit.
 #include "catch.hpp"
 #include "free_piece.hpp"
-#include "rigid_fit.hpp"
+#include "material_mesh.hpp"
 
 #include <plastifem/cutting.hpp>
 #include <plastifem/plasticity.hpp>

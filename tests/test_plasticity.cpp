@@ -23,7 +23,7 @@
 //  - statics carry the plastic state from increment to increment (path dependence);
 //  - real-time mode and the lumped mass run plasticity too; bad parameters are refused by name.
 #include "catch.hpp"
-#include "rigid_fit.hpp"
+#include "material_mesh.hpp"
 
 #include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
@@ -39,6 +39,7 @@
 using namespace plastifem;
 using test::RigidFit;
 using test::rigid_fit;
+using test::material_volume;
 
 namespace {
 
@@ -51,18 +52,6 @@ Mat3 rotation_about(const Vec3& axis, Scalar angle) { return rotation_exp(axis.n
 template <class S>
 Scalar max_rest_change(const S& s) {
   return (s.material_positions() - s.mesh().nodes()).cwiseAbs().maxCoeff();
-}
-
-/// The rest volume of the material mesh (sum of exact element volumes).
-template <FiniteElement E>
-Scalar material_volume(const Mesh<E>& mesh, const Eigen::Matrix3Xd& x) {
-  Scalar v = 0;
-  for (Index e = 0; e < mesh.num_elements(); ++e) {
-    ElementNodes<E> X;
-    for (int a = 0; a < E::num_nodes; ++a) X.col(a) = x.col(mesh.element(e)[a]);
-    v += element_volume<E>(X);
-  }
-  return v;
 }
 
 PlasticParams stretch_params(Scalar tau, Scalar nu, Scalar scale = 50) {

@@ -275,10 +275,10 @@ class Constraints {
   template <class F>
   static OneSided one_sided(const F& f, Scalar t, const Vec3& f0, Scalar h, bool second) {
     // f3 also when only f' is wanted: the jump test needs three differences.
-    const Vec3 f1 = f(t - h), f2 = f(t - 2 * h), f3 = f(t - 3 * h);
-    const std::array<Vec3, 3> d{f0 - f1, f1 - f2, f2 - f3};
+    const std::array<Vec3, 4> v{f0, f(t - h), f(t - 2 * h), f(t - 3 * h)};
+    const std::array<Vec3, 3> d{v[0] - v[1], v[1] - v[2], v[2] - v[3]};
     OneSided r;
-    if (!jump_inside(f, t, h, d, std::max({f0.norm(), f1.norm(), f2.norm(), f3.norm()}))) {
+    if (!jump_inside(f, t, h, v, d)) {
       r.first = (3 * d[0] - d[1]) / (2 * h);
       if (second) r.second = (2 * d[0] - 3 * d[1] + d[2]) / (h * h);
       return r;
@@ -290,14 +290,16 @@ class Constraints {
     r.jumped = true;
     return r;
   }
-  /// Whether f jumps inside [t - 3h, t], given its differences d_k over [t - kh, t - (k-1)h].
+  /// Whether f jumps inside [t - 3h, t], given its values v_k = f(t - kh) and their differences
+  /// d_k = v_k - v_{k+1}.
   /// Over a continuous stretch the three differences change smoothly (by about h^2 |f''| from
   /// one to the next); a jump J makes one of them stand out from the line through the other two
   /// by about |J|. Such an outlier's interval is halved down to adjacent doubles, keeping the
   /// half that changes more: a continuous f's change shrinks with the interval, a jump's stays.
   /// (A kink passes the first test at times and is then found continuous.)
   template <class F>
-  static bool jump_inside(const F& f, Scalar t, Scalar h, const std::array<Vec3, 3>& d, Scalar size) {
+  static bool jump_inside(const F& f, Scalar t, Scalar h, const std::array<Vec3, 4>& v, const std::array<Vec3, 3>& d) {
+    const Scalar size = std::max({v[0].norm(), v[1].norm(), v[2].norm(), v[3].norm()});
     // Changes within a few thousand ulps of the values, or of f's change over an ulp of t, are
     // round-off, not jumps.
     const Scalar largest = std::max({d[0].norm(), d[1].norm(), d[2].norm()});
@@ -311,7 +313,7 @@ class Constraints {
       const Scalar outlier = (d[k] - expected).norm(), spread = (dj - dl).norm();
       if (!(outlier > 8 * spread + noise)) continue;
       Scalar lo = t - (k + 1) * h, hi = t - k * h;
-      Vec3 f_lo = f(lo), f_hi = f(hi);
+      Vec3 f_lo = v[k + 1], f_hi = v[k];
       for (int halving = 0; halving < 64; ++halving) {
         const Scalar mid = lo + (hi - lo) / 2;
         if (mid <= lo || mid >= hi) break;

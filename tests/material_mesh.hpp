@@ -1,8 +1,11 @@
 #pragma once
-// The best rigid fit between two placements of the same points (Kabsch), for tests that compare
+// Measures of a material (rest) mesh moved by plastic flow, for the plasticity tests: its
+// volume, and the best rigid fit between two placements of its nodes (Kabsch), to compare
 // material meshes up to rigid motion.
 #include <plastifem/core/polar.hpp>
 #include <plastifem/core/types.hpp>
+#include <plastifem/element/element.hpp>
+#include <plastifem/mesh/mesh.hpp>
 
 #include <algorithm>
 
@@ -23,6 +26,19 @@ inline RigidFit rigid_fit(const Eigen::Matrix3Xd& a, const Eigen::Matrix3Xd& b) 
   Scalar worst = 0;
   for (Index i = 0; i < a.cols(); ++i) worst = std::max(worst, (b.col(i) - cb - R * (a.col(i) - ca)).norm());
   return {Eigen::AngleAxisd(R).angle(), worst};
+}
+
+/// The volume of the mesh's elements with nodes at x (the material mesh: sum of exact element
+/// volumes).
+template <FiniteElement E>
+Scalar material_volume(const Mesh<E>& mesh, const Eigen::Matrix3Xd& x) {
+  Scalar v = 0;
+  for (Index e = 0; e < mesh.num_elements(); ++e) {
+    ElementNodes<E> X;
+    for (int a = 0; a < E::num_nodes; ++a) X.col(a) = x.col(mesh.element(e)[a]);
+    v += element_volume<E>(X);
+  }
+  return v;
 }
 
 }  // namespace plastifem::test
