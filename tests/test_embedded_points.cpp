@@ -79,7 +79,7 @@ TEST_CASE("embedded points in a cut body take their own piece's field", "[points
     const EmbeddedPoints<Hex8> half_points(half, X_half);
     for (int k = 0; k < 50; ++k) s.step(0.01), h.step(0.01);
     Eigen::Matrix3Xd at, at_half;
-    points.interpolate(s.displacement(), at, &s.enrichment());
+    points.interpolate(s.displacement(), at, s.enrichment());
     half_points.interpolate(h.displacement(), at_half);
     const Scalar fall = fallen(s.time());
     Scalar free_off = 0, clamped_off = 0;
@@ -241,5 +241,5 @@ TEST_CASE("embedded points follow a growing cut: sides reassigned, each piece's 
   CHECK(sigma[3].norm() < 1e-5 * sigma[2].norm());
   // The low-level call refuses an enrichment the sides were not assigned for.
   EmbeddedPoints<Hex8> fresh(mesh, X);
-  CHECK_THROWS_AS(fresh.interpolate(s.displacement(), u, &s.enrichment()), InvalidArgument);
+  CHECK_THROWS_AS(fresh.interpolate(s.displacement(), u, s.enrichment()), InvalidArgument);
 }

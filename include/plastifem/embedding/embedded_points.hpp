@@ -40,25 +40,28 @@ class EmbeddedPoints {
   /// Locates every point of X (rest coordinates) in the mesh; a point in no element is refused
   /// with InvalidArgument naming it.
   EmbeddedPoints(const Mesh<E>& mesh, std::span<const Vec3> X)
-      : num_nodes_(mesh.num_nodes()), num_elements_(mesh.num_elements()) {
-    const PointLocator<E> locator(mesh);
-    element_.reserve(X.size()), xi_.reserve(X.size()), shape_.reserve(X.size());
-    for (size_t k = 0; k < X.size(); ++k) {
-      const auto where = locator.locate(X[k]);
-      if (!where)
-        fail<InvalidArgument>("embedded point {} at ({}, {}, {}) is in no element of the mesh (rest configuration)", k,
-                              X[k].x(), X[k].y(), X[k].z());
-      typename E::ShapeVector n = E::shape(where->xi);
-      // A point on a node takes exactly the node's values (Newton's xi is off by round-off).
-      for (int a = 0; a < N; ++a)
-        if (std::abs(n[a] - 1) <= 1e-12) n.setZero(), n[a] = 1;
-      element_.push_back(where->element), xi_.push_back(where->xi), shape_.push_back(n);
-      nodes_.push_back(mesh.element(where->element));
-      Vec3 at = Vec3::Zero();
-      for (int a = 0; a < N; ++a) at += n[a] * mesh.node(nodes_.back()[a]);
-      rest_.push_back(at);
-    }
-    side_.assign(X.size(), 0);
+      : EmbeddedPoints(mesh, static_cast<Index>(X.size()), [&](Index k) { return X[static_cast<size_t>(k)]; }) {}
+  /// The same, one point per column.
+  EmbeddedPoints(const Mesh<E>& mesh, const Eigen::Matrix3Xd& X)
+      : EmbeddedPoints(mesh, X.cols(), [&](Index k) { return Vec3(X.col(k)); }) {}
+  /// Points on a cut, each with the side it belongs to (0: the level set's >= 0 side, 1: the
+  /// other; -1: the side whose piece contains it, as above). In a cut element the given side
+  /// is taken; elsewhere the point has the element's one side. (A surface split along a cut
+  /// puts two such points at each crossing: embedded_surface.hpp.)
+  EmbeddedPoints(const Mesh<E>& mesh, const Eigen::Matrix3Xd& X, std::vector<signed char> sides)
+      : EmbeddedPoints(mesh, X) {
+    set_sides(std::move(sides));
+  }
+
+  /// Gives each point the side it belongs to in a cut element (as the constructor above; -1:
+  /// the containing piece's), from the next field asked on.
+  void set_sides(std::vector<signed char> sides) {
+    if (static_cast<Index>(sides.size()) != size())
+      fail<InvalidArgument>("embedded points: {} sides for {} points", sides.size(), size());
+    for (signed char s : sides)
+      if (s < -1 || s > 1) fail<InvalidArgument>("embedded points: side {} (0, 1, or -1 for the containing piece's)", s);
+    given_side_ = std::move(sides);
+    sides_of_ = nullptr;
   }
 
   Index size() const { return static_cast<Index>(element_.size()); }
@@ -66,13 +69,21 @@ class EmbeddedPoints {
   const Vec3& xi(Index k) const { return xi_[k]; }
   /// The side of the cut point k lies on (0 outside cut elements).
   int side(Index k) const { return side_[k]; }
+  /// The points' rest positions sum N_a X_a (at the mesh's nodes; the given points to the
+  /// location's round-off).
+  void rest_positions(Eigen::Matrix3Xd& out) const {
+    out.resize(3, size());
+    for (size_t k = 0; k < rest_.size(); ++k) out.col(static_cast<Index>(k)) = rest_[k];
+  }
 
   /// Each point's side in its element of `enrichment` (after a cut, or a grown one; the
   /// Solver-level calls below do this themselves).
   void assign_sides(const Enrichment<E>& enrichment) {
     for (size_t k = 0; k < element_.size(); ++k) {
       const CutElement<E>* cut = enrichment.element(element_[k]);
-      side_[k] = cut && cut->num_sides == 2 ? side_of(*cut, xi_[k]) : 0;
+      side_[k] = !(cut && cut->num_sides == 2)        ? 0
+                 : !given_side_.empty() && given_side_[k] >= 0 ? given_side_[k]
+                                                               : side_of(*cut, xi_[k]);
     }
     sides_of_ = &enrichment, sides_revision_ = enrichment.revision();
   }
@@ -80,11 +91,11 @@ class EmbeddedPoints {
   // --- fields of a Solver's committed state (see the file comment) --------------------------
   template <class S>
   void displacements(const S& solver, Eigen::Matrix3Xd& out) {
-    interpolate(solver.displacement(), out, current_enrichment(solver), solver.settings().threads);
+    field(solver, solver.displacement(), out);
   }
   template <class S>
   void velocities(const S& solver, Eigen::Matrix3Xd& out) {
-    interpolate(solver.velocity(), out, current_enrichment(solver), solver.settings().threads);
+    field(solver, solver.velocity(), out);
   }
   template <class S>
   void positions(const S& solver, Eigen::Matrix3Xd& out) {
@@ -96,40 +107,93 @@ class EmbeddedPoints {
     check_mesh(solver);
     using Hooks = PlasticHooks<typename S::PlasticPolicy, E, typename S::ElasticModel>;
     if (const Vector* rest = Hooks::rest_positions(solver.state().plastic))
-      return interpolate(*rest, out, nullptr, solver.settings().threads);
-    out.resize(3, size());
-    for (size_t k = 0; k < element_.size(); ++k) out.col(static_cast<Index>(k)) = rest_[k];
+      return interpolate(*rest, out, solver.settings().threads);
+    rest_positions(out);
   }
   template <class S>
   void stresses(const S& solver, std::vector<Mat3>& out) {
-    current_enrichment(solver);
+    check_mesh(solver);
+    if constexpr (S::EnrichmentPolicy::active) sync_sides(solver.enrichment());
     out.resize(element_.size());
     for (size_t k = 0; k < element_.size(); ++k) out[k] = solver.stress(element_[k], side_[k]);
   }
 
-  /// out.col(k) = the field of nodal values u (3 per dof block: the nodes', then the enriched
-  /// rows) at point k; enriched rows are read where `enrichment` enriches the point's element.
+  /// out.col(k) = the field of nodal values u (3 per node) at point k.
   /// `threads`: OpenMP threads for the points (0: OpenMP's default).
-  void interpolate(const Vector& u, Eigen::Matrix3Xd& out, const Enrichment<E>* enrichment = nullptr,
-                   int threads = 1) const {
-    if (u.size() < 3 * num_nodes_)
-      fail<InvalidArgument>("embedded points: a field of {} entries, the mesh has {} nodes", u.size(), num_nodes_);
-    if (enrichment && (enrichment != sides_of_ || enrichment->revision() != sides_revision_))
+  void interpolate(const Vector& u, Eigen::Matrix3Xd& out, int threads = 1) const {
+    interpolate_over(u, out, threads, [](Index, Vec3&) {});
+  }
+  /// The same in a cut body: u has the enriched rows after the nodes', read where `enrichment`
+  /// enriches the point's element, with the point's side (assign_sides first).
+  void interpolate(const Vector& u, Eigen::Matrix3Xd& out, const Enrichment<E>& enrichment, int threads = 1) const {
+    if (&enrichment != sides_of_ || enrichment.revision() != sides_revision_)
       fail<InvalidArgument>("embedded points: the sides were not assigned for this enrichment or it changed since "
                             "(assign_sides, or the Solver-level calls, which assign them)");
+    interpolate_over(u, out, threads, [&](Index k, Vec3& x) {
+      if (const CutElement<E>* cut = enrichment.element(element_[k]))
+        for (const auto& d : cut->enriched) x += (shape_[k][d.node] * d.psi[side_[k]]) * u.template segment<3>(3 * d.row);
+    });
+  }
+
+ private:
+  /// The solver's field f at the points, with its enrichment if it has one.
+  template <class S>
+  void field(const S& solver, const Vector& f, Eigen::Matrix3Xd& out) {
+    check_mesh(solver);
+    if constexpr (S::EnrichmentPolicy::active) {
+      sync_sides(solver.enrichment());
+      interpolate(f, out, solver.enrichment(), solver.settings().threads);
+    } else {
+      interpolate(f, out, solver.settings().threads);
+    }
+  }
+  /// The sides brought up to date with the enrichment (a new or grown cut changes them).
+  template <class Enr>
+  void sync_sides(const Enr& enrichment) {
+    if (sides_of_ != &enrichment || sides_revision_ != enrichment.revision()) assign_sides(enrichment);
+  }
+  /// sum_a N_a u_a at every point, plus what enriched(k, x) adds.
+  template <class Enriched>
+  void interpolate_over(const Vector& u, Eigen::Matrix3Xd& out, int threads, Enriched&& enriched) const {
+    if (u.size() < 3 * num_nodes_)
+      fail<InvalidArgument>("embedded points: a field of {} entries, the mesh has {} nodes", u.size(), num_nodes_);
     out.resize(3, size());
     parallel_for(size(), threads, [&](Index k) {
       const auto& c = nodes_[k];
       Vec3 x = Vec3::Zero();
       for (int a = 0; a < N; ++a) x += shape_[k][a] * u.template segment<3>(3 * c[a]);
-      if (const CutElement<E>* cut = enrichment ? enrichment->element(element_[k]) : nullptr)
-        for (const auto& d : cut->enriched)
-          x += (shape_[k][d.node] * d.psi[side_[k]]) * u.template segment<3>(3 * d.row);
+      enriched(k, x);
       out.col(k) = x;
     });
   }
 
- private:
+  /// Locates point X(k), k < count (the public constructors' one body).
+  template <class Point>
+  EmbeddedPoints(const Mesh<E>& mesh, Index count, Point X)
+      : num_nodes_(mesh.num_nodes()), num_elements_(mesh.num_elements()) {
+    const PointLocator<E> locator(mesh);
+    element_.reserve(static_cast<size_t>(count)), xi_.reserve(static_cast<size_t>(count)),
+        shape_.reserve(static_cast<size_t>(count));
+    for (Index k = 0; k < count; ++k) {
+      const Vec3 p = X(k);
+      const auto where = locator.locate(p);
+      if (!where)
+        fail<InvalidArgument>("embedded point {} at ({}, {}, {}) is in no element of the mesh (rest configuration)", k,
+                              p.x(), p.y(), p.z());
+      typename E::ShapeVector n = E::shape(where->xi);
+      // A point on a node takes exactly the node's values (Newton's xi is off by round-off).
+      for (int a = 0; a < N; ++a)
+        if (std::abs(n[a] - 1) <= 1e-12) n.setZero(), n[a] = 1;
+      element_.push_back(where->element), xi_.push_back(where->xi), shape_.push_back(n);
+      nodes_.push_back(mesh.element(where->element));
+      Vec3 at = Vec3::Zero();
+      for (int a = 0; a < N; ++a) at += n[a] * mesh.node(nodes_.back()[a]);
+      rest_.push_back(at);
+    }
+    side_.assign(static_cast<size_t>(count), 0);
+  }
+
+
   /// The side whose pieces contain xi; on the interface (round-off), the one it is least
   /// outside of.
   static int side_of(const CutElement<E>& cut, const Vec3& xi) {
@@ -147,18 +211,6 @@ class EmbeddedPoints {
     return best;
   }
 
-  /// The solver's enrichment (null without one), the points' sides brought up to date with it.
-  template <class S>
-  const Enrichment<E>* current_enrichment(const S& solver) {
-    check_mesh(solver);
-    if constexpr (S::EnrichmentPolicy::active) {
-      const Enrichment<E>& enr = solver.enrichment();
-      if (sides_of_ != &enr || sides_revision_ != enr.revision()) assign_sides(enr);
-      return &enr;
-    } else {
-      return nullptr;
-    }
-  }
   /// The points were located in a mesh of this solver's size (the solver keeps its own copy).
   template <class S>
   void check_mesh(const S& solver) const {
@@ -176,6 +228,7 @@ class EmbeddedPoints {
   std::vector<Vec3> xi_;
   std::vector<typename E::ShapeVector> shape_;
   std::vector<int> side_;
+  std::vector<signed char> given_side_;  ///< per point, or empty: none given
   const Enrichment<E>* sides_of_ = nullptr;  ///< the enrichment side_ was assigned from
   std::uint64_t sides_revision_ = 0;
 };

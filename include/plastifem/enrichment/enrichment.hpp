@@ -70,6 +70,8 @@ class Enrichment {
   std::uint64_t revision() const { return revision_; }
   /// The level set of cut c at node i (NaN where it was not needed: far from the cut).
   Scalar level_set(int c, Index i) const { return cuts_[c].phi[i]; }
+  /// Cut c's surface (the grown one, for a grown cut).
+  const Cut& geometry(int c) const { return cuts_[c].geometry; }
 
   /// Applies `surface` as a new cut (id < 0) or as the grown surface of cut `id` (see the file
   /// comment). Throws InvalidArgument, with nothing changed, if the cut is refused. The cut is

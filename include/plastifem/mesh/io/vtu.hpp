@@ -382,15 +382,18 @@ inline void check_fields(const std::vector<Field>& fields, Index count, const ch
 
 // =================================================================================================
 
-/// Writes `mesh` with optional point fields (one column per node) and cell fields (one column per
-/// element). Throws IoError if the file cannot be written, InvalidArgument on a field of the
-/// wrong size, a duplicate name, or a deform_by that names no 3-component point field.
-template <FiniteElement E>
-void write_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const std::vector<Field>& point_data = {},
-               const std::vector<Field>& cell_data = {}, const VtuOptions& options = {}) {
+/// Writes an unstructured grid of one cell type: `points` (one column per point), `connectivity`
+/// (nodes_per_cell point indices per cell), point fields (one column per point) and cell fields
+/// (one column per cell). What write_vtu and io::write_surface_vtu write. Throws as write_vtu.
+inline void write_vtu_cells(const std::filesystem::path& path, Eigen::Matrix3Xd points,
+                            const std::vector<std::int64_t>& connectivity, int nodes_per_cell, int vtk_type,
+                            const std::vector<Field>& point_data = {}, const std::vector<Field>& cell_data = {},
+                            const VtuOptions& options = {}) {
   using detail::OutType;
-  detail::check_fields(point_data, mesh.num_nodes(), "point");
-  detail::check_fields(cell_data, mesh.num_elements(), "cell");
+  const Index num_points = points.cols();
+  const size_t ne = connectivity.size() / static_cast<size_t>(nodes_per_cell);
+  detail::check_fields(point_data, num_points, "point");
+  detail::check_fields(cell_data, static_cast<Index>(ne), "cell");
 
   std::vector<detail::OutArray> arrays;  // in file order: point data, cell data, points, cells
   for (const Field& f : point_data)
@@ -401,7 +404,6 @@ void write_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const std
                                        static_cast<size_t>(f.values.size())));
   const size_t n_point_fields = point_data.size(), n_cell_fields = cell_data.size();
 
-  Eigen::Matrix3Xd points = mesh.nodes();
   if (!options.deform_by.empty()) {
     auto it = std::find_if(point_data.begin(), point_data.end(), [&](const Field& f) { return f.name == options.deform_by; });
     if (it == point_data.end() || it->values.rows() != 3)
@@ -410,12 +412,9 @@ void write_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const std
   }
   arrays.push_back(detail::out_array("Points", OutType::f64, 3, points.data(), static_cast<size_t>(points.size())));
 
-  const size_t ne = static_cast<size_t>(mesh.num_elements());
-  std::vector<std::int64_t> connectivity, offsets(ne);
-  connectivity.reserve(ne * E::num_nodes);
-  for (const auto& c : mesh.elements()) connectivity.insert(connectivity.end(), c.begin(), c.end());
-  for (size_t e = 0; e < ne; ++e) offsets[e] = static_cast<std::int64_t>((e + 1) * E::num_nodes);
-  const std::vector<std::uint8_t> types(ne, static_cast<std::uint8_t>(E::vtk_cell_type));
+  std::vector<std::int64_t> offsets(ne);
+  for (size_t e = 0; e < ne; ++e) offsets[e] = static_cast<std::int64_t>((e + 1) * static_cast<size_t>(nodes_per_cell));
+  const std::vector<std::uint8_t> types(ne, static_cast<std::uint8_t>(vtk_type));
   arrays.push_back(detail::out_array("connectivity", OutType::i64, 0, connectivity.data(), connectivity.size()));
   arrays.push_back(detail::out_array("offsets", OutType::i64, 0, offsets.data(), offsets.size()));
   arrays.push_back(detail::out_array("types", OutType::u8, 0, types.data(), types.size()));
@@ -429,8 +428,7 @@ void write_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const std
                  "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"{}\" header_type=\"UInt64\">\n"
                  "  <UnstructuredGrid>\n"
                  "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n",
-                 std::endian::native == std::endian::little ? "LittleEndian" : "BigEndian", mesh.num_nodes(),
-                 mesh.num_elements());
+                 std::endian::native == std::endian::little ? "LittleEndian" : "BigEndian", num_points, ne);
   std::uint64_t offset = 0;  // of the next array in the appended data
   auto data_array = [&](const detail::OutArray& a) {
     fmt::format_to(out, "        <DataArray type=\"{}\" Name=\"{}\"", detail::type_name(a.type), detail::xml_escape(a.name));
@@ -482,6 +480,18 @@ void write_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const std
   file << "</VTKFile>\n";
   file.close();
   if (!file) fail<IoError>("error while writing '{}' (disk full?)", path.string());
+}
+
+/// Writes `mesh` with optional point fields (one column per node) and cell fields (one column per
+/// element). Throws IoError if the file cannot be written, InvalidArgument on a field of the
+/// wrong size, a duplicate name, or a deform_by that names no 3-component point field.
+template <FiniteElement E>
+void write_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const std::vector<Field>& point_data = {},
+               const std::vector<Field>& cell_data = {}, const VtuOptions& options = {}) {
+  std::vector<std::int64_t> connectivity;
+  connectivity.reserve(static_cast<size_t>(mesh.num_elements()) * E::num_nodes);
+  for (const auto& c : mesh.elements()) connectivity.insert(connectivity.end(), c.begin(), c.end());
+  write_vtu_cells(path, mesh.nodes(), connectivity, E::num_nodes, E::vtk_cell_type, point_data, cell_data, options);
 }
 
 // =================================================================================================
