@@ -16,6 +16,7 @@
 // triangle and a quad of two), each made of its side's vertices, so the surface opens exactly
 // along the cut and stays closed everywhere else. Vertices keep their numbers; the crossings'
 // follow them.
+#include <plastifem/core/parallel.hpp>
 #include <plastifem/embedding/embedded_points.hpp>
 #include <plastifem/embedding/triangle_surface.hpp>
 #include <plastifem/mesh/io/surface.hpp>
@@ -37,7 +38,8 @@ class EmbeddedSurface {
       : given_((check_surface(surface, "embedded surface"), std::move(surface))), surface_(given_),
         points_(mesh, given_.vertices) {
     points_.rest_positions(positions_);
-    vertex_normals(surface_, positions_, normals_);
+    topology_changed();
+    update_normals(1);
   }
 
   /// The surface as it is now: the one given, split along the cuts since.
@@ -62,7 +64,7 @@ class EmbeddedSurface {
       crossings_->positions(solver, crossing_x_);
       positions_.rightCols(crossing_x_.cols()) = crossing_x_;
     }
-    vertex_normals(surface_, positions_, normals_);
+    update_normals(solver.settings().threads);
   }
   /// Vertex positions and unit normals of the last update (the rest surface before one).
   const Eigen::Matrix3Xd& positions() const { return positions_; }
@@ -81,7 +83,10 @@ class EmbeddedSurface {
   /// The given surface split along every cut of `enr` (see the file comment).
   void split(const Mesh<E>& mesh, const Enrichment<E>& enr) {
     points_.assign_sides(enr);
-    const PointLocator<E> locator(mesh);
+    // The locator over the solver's mesh, built on the first cut and kept (the solver's mesh
+    // does not change; another solver's mesh gets its own).
+    if (!locator_ || locator_mesh_ != &mesh) locator_.emplace(mesh), locator_mesh_ = &mesh;
+    const PointLocator<E>& locator = *locator_;
     std::vector<Vec3> X;  // rest positions: the given vertices', then the crossings'
     for (Index i = 0; i < given_.num_vertices(); ++i) X.push_back(given_.vertices.col(i));
     std::vector<signed char> crossing_side;  // per crossing vertex: its side, -1 where not opened
@@ -202,12 +207,47 @@ class EmbeddedSurface {
     crossings_.reset();
     if (!kept.empty()) crossings_.emplace(mesh, crossing_X, std::move(kept_side));
     split_for_ = &enr, split_revision_ = enr.revision();
+    topology_changed();
+  }
+
+  /// Each vertex's triangles (compressed rows), for the normals' gather.
+  void topology_changed() {
+    const size_t nv = static_cast<size_t>(surface_.num_vertices());
+    first_triangle_.assign(nv + 1, 0);
+    for (const Triangle& t : surface_.triangles)
+      for (Index v : t) ++first_triangle_[static_cast<size_t>(v) + 1];
+    for (size_t v = 0; v < nv; ++v) first_triangle_[v + 1] += first_triangle_[v];
+    vertex_triangles_.resize(3 * surface_.triangles.size());
+    std::vector<Index> fill(first_triangle_.begin(), first_triangle_.end() - 1);
+    for (size_t t = 0; t < surface_.triangles.size(); ++t)
+      for (Index v : surface_.triangles[t]) vertex_triangles_[static_cast<size_t>(fill[static_cast<size_t>(v)]++)] = static_cast<Index>(t);
+  }
+  /// vertex_normals (triangle_surface.hpp) in two parallel passes: each triangle's (b - a) x
+  /// (c - a), then each vertex's sum over its triangles, normalised.
+  void update_normals(int threads) {
+    face_.resize(3, surface_.num_triangles());
+    parallel_for(surface_.num_triangles(), threads, [&](Index t) {
+      const Triangle& c = surface_.triangles[static_cast<size_t>(t)];
+      const Vec3 a = positions_.col(c[0]);
+      face_.col(t) = (positions_.col(c[1]) - a).cross(positions_.col(c[2]) - a);
+    });
+    normals_.resize(3, surface_.num_vertices());
+    parallel_for(surface_.num_vertices(), threads, [&](Index v) {
+      Vec3 n = Vec3::Zero();
+      for (Index k = first_triangle_[static_cast<size_t>(v)]; k < first_triangle_[static_cast<size_t>(v) + 1]; ++k)
+        n += face_.col(vertex_triangles_[static_cast<size_t>(k)]);
+      const Scalar len = n.norm();
+      normals_.col(v) = len > 0 ? Vec3(n / len) : Vec3::Zero();
+    });
   }
 
   TriangleSurface given_, surface_;
   EmbeddedPoints<E> points_;                      ///< the given vertices
   std::optional<EmbeddedPoints<E>> crossings_;    ///< the vertices the cuts added
-  Eigen::Matrix3Xd positions_, normals_, given_x_, crossing_x_;
+  Eigen::Matrix3Xd positions_, normals_, given_x_, crossing_x_, face_;
+  std::vector<Index> first_triangle_, vertex_triangles_;  ///< each vertex's triangles
+  std::optional<PointLocator<E>> locator_;  ///< for the crossings, over locator_mesh_
+  const Mesh<E>* locator_mesh_ = nullptr;
   const Enrichment<E>* split_for_ = nullptr;  ///< the enrichment surface_ was split along
   std::uint64_t split_revision_ = 0;
 };
