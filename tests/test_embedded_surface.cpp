@@ -161,7 +161,7 @@ TEMPLATE_TEST_CASE("embedded surface: an affine motion moves it exactly, its vol
   CHECK(std::abs(V / V0 - F.determinant()) < 1e-12);
 }
 
-TEST_CASE("embedded surface in dynamics: closed, finite, its vertices at nodes on the nodes; written as PVD",
+TEST_CASE("embedded surface in dynamics: closed, finite, its vertices at nodes on the nodes, written as PVD",
           "[surface]") {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 4, 4);
   // The sphere touches nothing; a second surface, the box's own boundary (its vertices are
