@@ -255,6 +255,8 @@ TEST_CASE("surface files: STL binary and ASCII, malformed OBJ and STL named by l
   CHECK(read_error(d / "bad_number.obj").find("bad_number.obj:2: 'zero' is not a finite number") != std::string::npos);
   write_text(d / "short_face.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n");
   CHECK(read_error(d / "short_face.obj").find("short_face.obj:3: a face needs at least 3 vertices") != std::string::npos);
+  write_text(d / "repeated.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 2\n");
+  CHECK(read_error(d / "repeated.obj").find("repeated.obj:5: the face repeats vertex 2") != std::string::npos);
   write_text(d / "no_faces.obj", "v 0 0 0\n");
   CHECK(read_error(d / "no_faces.obj").find("no faces") != std::string::npos);
   write_text(d / "short_facet.stl", "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\n");
@@ -269,4 +271,8 @@ TEST_CASE("surface files: STL binary and ASCII, malformed OBJ and STL named by l
   write_text(d / "surface.ply", "ply\n");
   CHECK(read_error(d / "surface.ply").find("unknown surface format '.ply'") != std::string::npos);
   CHECK(read_error(d / "missing.obj") != "");
+  // The cell writer refuses connectivity that is not whole cells of existing points.
+  const Eigen::Matrix3Xd pts = Eigen::Matrix3Xd::Zero(3, 3);
+  CHECK_THROWS_AS(io::write_vtu_cells(d / "bad.vtu", pts, {0, 1, 2, 0}, 3, 5), InvalidArgument);
+  CHECK_THROWS_AS(io::write_vtu_cells(d / "bad.vtu", pts, {0, 1, 3}, 3, 5), InvalidArgument);
 }

@@ -91,6 +91,19 @@ void cut_sphere() {
     CHECK(lowest > 2 - 0.15);
     CHECK(lowest < 2.4);
     CHECK(count_pieces(cut) == 1);
+    // Closed but along the opening: every rim vertex is a crossing with a twin at its rest point
+    // (the other side's), none a vertex of the given surface (a T-junction at the cut's tip
+    // would leave one there).
+    const Index given = cut.num_vertices() - surface.num_crossing_vertices();
+    Index untwinned = 0, given_on_rim = 0;
+    for (Index v : rim) {
+      given_on_rim += v < given;
+      bool twin = false;
+      for (Index w : rim) twin = twin || (w != v && (cut.vertices.col(w) - cut.vertices.col(v)).norm() < 1e-12);
+      untwinned += !twin;
+    }
+    CHECK(given_on_rim == 0);
+    CHECK(untwinned == 0);
   }
 
   // Grown through: two pieces, the rim a closed loop on each side, all on the plane (the grown
@@ -133,4 +146,47 @@ TEST_CASE("embedded surface cut with the tissue: open exactly along the cut, eac
           "[surface][enrichment]") {
   cut_sphere<Heaviside>();
   cut_sphere<ShiftedHeaviside>();
+}
+
+TEST_CASE("embedded surface cut along element faces opens with either normal, and a new solver re-splits",
+          "[surface][enrichment]") {
+  // A plane cut at x = 3, a plane of nodes: the cut elements are on one side of it only, and the
+  // surface's crossings lie on their shared faces. With either normal the sphere comes apart in
+  // two, its rim on the plane. Then solvers built one after another in the same place (the same
+  // address) with cuts at other x: the surface follows each.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 4, 4);
+  EmbeddedSurface<Hex8> surface(mesh, sphere_surface(Vec3(3, 2, 2), 1.5, 3));
+  for (const Scalar normal : {1.0, -1.0}) {
+    Solver<Hex8, Corotational, NoPlasticity, Heaviside> s(mesh, Material{3000, 0.45, 1.0});
+    s.cut(CutPlane(Vec3(3, 0, 0), Vec3(normal, 0, 0)));
+    surface.update(s);
+    const std::set<Index> rim = rim_vertices(surface.surface());
+    Scalar off_plane = 0;
+    for (Index v : rim) off_plane = std::max(off_plane, std::abs(surface.surface().vertices(0, v) - 3));
+    INFO("normal " << normal << ": " << rim.size() << " rim vertices, off the plane by " << off_plane);
+    CHECK(count_pieces(surface.surface()) == 2);
+    CHECK(!rim.empty());
+    CHECK(off_plane < 1e-12);
+  }
+  for (const Scalar x : {2.5, 3.5}) {
+    Solver<Hex8, Corotational, NoPlasticity, Heaviside> s(mesh, Material{3000, 0.45, 1.0});
+    s.cut(CutPlane(Vec3(x, 0, 0), Vec3(1, 0, 0)));
+    surface.update(s);
+    Scalar off_plane = 0;
+    for (Index v : rim_vertices(surface.surface())) off_plane = std::max(off_plane, std::abs(surface.surface().vertices(0, v) - x));
+    INFO("cut at x = " << x);
+    CHECK(count_pieces(surface.surface()) == 2);
+    CHECK(off_plane < 1e-12);
+  }
+  // A field without the enriched rows, in a cut body, is refused rather than read past its end.
+  Solver<Hex8, Corotational, NoPlasticity, Heaviside> s(mesh, Material{3000, 0.45, 1.0});
+  s.cut(CutPlane(Vec3(3.3, 0, 0), Vec3(1, 0, 0)));
+  EmbeddedPoints<Hex8> points(mesh, std::vector<Vec3>{Vec3(3.2, 2, 2)});
+  points.assign_sides(s.enrichment());
+  Eigen::Matrix3Xd out;
+  CHECK_THROWS_AS(points.interpolate(Vector::Zero(3 * mesh.num_nodes()), out, s.enrichment()), InvalidArgument);
+  // The surface's VTU has its points moved already: deform_by would move them twice.
+  io::VtuOptions warp;
+  warp.deform_by = "displacement";
+  CHECK_THROWS_AS(surface.write_vtu("unused.vtu", warp), InvalidArgument);
 }

@@ -61,7 +61,7 @@ class EmbeddedPoints {
     for (signed char s : sides)
       if (s < -1 || s > 1) fail<InvalidArgument>("embedded points: side {} (0, 1, or -1 for the containing piece's)", s);
     given_side_ = std::move(sides);
-    sides_of_ = nullptr;
+    sides_of_ = 0;
   }
 
   Index size() const { return static_cast<Index>(element_.size()); }
@@ -76,6 +76,15 @@ class EmbeddedPoints {
     for (size_t k = 0; k < rest_.size(); ++k) out.col(static_cast<Index>(k)) = rest_[k];
   }
 
+  /// The points were located in a mesh of this solver's size (the solver keeps its own copy).
+  template <class S>
+  void check_mesh(const S& solver) const {
+    if (solver.mesh().num_nodes() != num_nodes_ || solver.mesh().num_elements() != num_elements_)
+      fail<InvalidArgument>("embedded points: located in a mesh of {} nodes and {} elements, asked for a solver's of "
+                            "{} and {}",
+                            num_nodes_, num_elements_, solver.mesh().num_nodes(),
+                            solver.mesh().num_elements());
+  }
   /// Each point's side in its element of `enrichment` (after a cut, or a grown one; the
   /// Solver-level calls below do this themselves).
   void assign_sides(const Enrichment<E>& enrichment) {
@@ -85,7 +94,7 @@ class EmbeddedPoints {
                  : !given_side_.empty() && given_side_[k] >= 0 ? given_side_[k]
                                                                : side_of(*cut, xi_[k]);
     }
-    sides_of_ = &enrichment, sides_revision_ = enrichment.revision();
+    sides_of_ = enrichment.instance(), sides_revision_ = enrichment.revision();
   }
 
   // --- fields of a Solver's committed state (see the file comment) --------------------------
@@ -126,9 +135,15 @@ class EmbeddedPoints {
   /// The same in a cut body: u has the enriched rows after the nodes', read where `enrichment`
   /// enriches the point's element, with the point's side (assign_sides first).
   void interpolate(const Vector& u, Eigen::Matrix3Xd& out, const Enrichment<E>& enrichment, int threads = 1) const {
-    if (&enrichment != sides_of_ || enrichment.revision() != sides_revision_)
+    if (enrichment.instance() != sides_of_ || enrichment.revision() != sides_revision_)
       fail<InvalidArgument>("embedded points: the sides were not assigned for this enrichment or it changed since "
                             "(assign_sides, or the Solver-level calls, which assign them)");
+    for (const auto& el : enrichment.elements())
+      for (const auto& d : el.enriched)
+        if (3 * d.row + 3 > u.size())
+          fail<InvalidArgument>("embedded points: a field of {} entries, the enrichment reads row {} (a cut body's "
+                                "field has the enriched rows after the nodes')",
+                                u.size(), d.row);
     interpolate_over(u, out, threads, [&](Index k, Vec3& x) {
       if (const CutElement<E>* cut = enrichment.element(element_[k]))
         for (const auto& d : cut->enriched) x += (shape_[k][d.node] * d.psi[side_[k]]) * u.template segment<3>(3 * d.row);
@@ -150,7 +165,7 @@ class EmbeddedPoints {
   /// The sides brought up to date with the enrichment (a new or grown cut changes them).
   template <class Enr>
   void sync_sides(const Enr& enrichment) {
-    if (sides_of_ != &enrichment || sides_revision_ != enrichment.revision()) assign_sides(enrichment);
+    if (sides_of_ != enrichment.instance() || sides_revision_ != enrichment.revision()) assign_sides(enrichment);
   }
   /// sum_a N_a u_a at every point, plus what enriched(k, x) adds.
   template <class Enriched>
@@ -211,15 +226,7 @@ class EmbeddedPoints {
     return best;
   }
 
-  /// The points were located in a mesh of this solver's size (the solver keeps its own copy).
-  template <class S>
-  void check_mesh(const S& solver) const {
-    if (solver.mesh().num_nodes() != num_nodes_ || solver.mesh().num_elements() != num_elements_)
-      fail<InvalidArgument>("embedded points: located in a mesh of {} nodes and {} elements, asked for a solver's of "
-                            "{} and {}",
-                            num_nodes_, num_elements_, solver.mesh().num_nodes(),
-                            solver.mesh().num_elements());
-  }
+
 
   Index num_nodes_, num_elements_;       ///< of the mesh the points were located in
   std::vector<typename Mesh<E>::Connectivity> nodes_;  ///< each point's element's nodes
@@ -229,7 +236,7 @@ class EmbeddedPoints {
   std::vector<typename E::ShapeVector> shape_;
   std::vector<int> side_;
   std::vector<signed char> given_side_;  ///< per point, or empty: none given
-  const Enrichment<E>* sides_of_ = nullptr;  ///< the enrichment side_ was assigned from
+  std::uint64_t sides_of_ = 0;  ///< the instance() of the enrichment side_ was assigned from
   std::uint64_t sides_revision_ = 0;
 };
 

@@ -48,12 +48,14 @@ class EmbeddedSurface {
   const EmbeddedPoints<E>& points() const { return points_; }
 
   /// Splits the surface along the solver's cuts if they changed, moves the vertices to the
-  /// solver's committed state and recomputes the normals.
+  /// solver's committed state and recomputes the normals. If the split fails (InvalidArgument),
+  /// the surface is left as it was.
   template <class S>
   void update(const S& solver) {
+    points_.check_mesh(solver);  // before the split reads the solver's mesh with our element ids
     if constexpr (S::EnrichmentPolicy::active) {
       const Enrichment<E>& enr = solver.enrichment();
-      if (&enr != split_for_ || enr.revision() != split_revision_) split(solver.mesh(), enr);
+      if (enr.instance() != split_instance_ || enr.revision() != split_revision_) split(solver.mesh(), enr);
     }
     points_.positions(solver, given_x_);
     positions_.resize(3, surface_.num_vertices());
@@ -72,52 +74,79 @@ class EmbeddedSurface {
 
   void write_obj(const std::filesystem::path& path) const { io::write_obj(path, surface_, positions_, normals_); }
   /// A VTU of triangles at the current positions, with the point fields "normal" and
-  /// "displacement" (from the rest surface; warp by it in ParaView to see both).
+  /// "displacement" (from the rest surface: colour by it; the points are already moved, so
+  /// VtuOptions::deform_by is refused).
   void write_vtu(const std::filesystem::path& path, const io::VtuOptions& options = {}) const {
+    if (!options.deform_by.empty())
+      fail<InvalidArgument>("EmbeddedSurface::write_vtu: the points are the current positions already; deform_by "
+                            "('{}') would move them twice",
+                            options.deform_by);
     io::write_surface_vtu(path, surface_, positions_,
                           {io::Field("normal", normals_), io::Field("displacement", positions_ - surface_.vertices)}, {},
                           options);
   }
 
  private:
-  /// The given surface split along every cut of `enr` (see the file comment).
+  /// The given surface split along every cut of `enr` (see the file comment). Everything is
+  /// built aside and committed at the end: a failure leaves the surface as it was.
   void split(const Mesh<E>& mesh, const Enrichment<E>& enr) {
-    points_.assign_sides(enr);
-    // The locator over the solver's mesh, built on the first cut and kept (the solver's mesh
-    // does not change; another solver's mesh gets its own).
-    if (!locator_ || locator_mesh_ != &mesh) locator_.emplace(mesh), locator_mesh_ = &mesh;
+    // The locator over the solver's mesh, built on the first cut and kept while the solver's
+    // enrichment is the same object (another solver's mesh gets its own).
+    if (!locator_ || locator_instance_ != enr.instance()) locator_.emplace(mesh), locator_instance_ = enr.instance();
     const PointLocator<E>& locator = *locator_;
-    std::vector<Vec3> X;  // rest positions: the given vertices', then the crossings'
-    for (Index i = 0; i < given_.num_vertices(); ++i) X.push_back(given_.vertices.col(i));
-    std::vector<signed char> crossing_side;  // per crossing vertex: its side, -1 where not opened
-    std::vector<signed char> given_side(static_cast<size_t>(given_.num_vertices()), -1);
-    std::vector<Triangle> triangles = given_.triangles;
+    points_.assign_sides(enr);
     const Index n_given = given_.num_vertices();
+    std::vector<Vec3> X;  // rest positions: the given vertices', then the crossings'
+    for (Index i = 0; i < n_given; ++i) X.push_back(given_.vertices.col(i));
+    std::vector<signed char> crossing_side;  // per crossing vertex: its side, -1 where not opened
+    std::vector<signed char> given_side(static_cast<size_t>(n_given), -1);
+    std::vector<Triangle> triangles = given_.triangles;
     for (int c = 0; c < enr.num_cuts(); ++c) {
       const auto& cut = enr.geometry(c);  // dependent: signed_distance is found where the cut types are complete
       auto in_cut_element = [&](Index e) {
         const CutElement<E>* el = enr.element(e);
         return el && el->cut == c && el->num_sides == 2;
       };
-      // The level set at a point: in one of the cut's elements, its nodal level set interpolated
-      // (what the element's pieces are cut by); elsewhere the cut surface's signed distance.
-      auto level_set_in = [&](Index e, const Vec3& xi) {
+      // The level set at a point: in an element whose nodes all have it (the cut's elements and
+      // those around them), the nodal level set interpolated, what the elements' pieces are cut
+      // by; elsewhere the cut surface's signed distance. A point in several elements (on a
+      // shared face) takes a cut element of this cut among them if there is one.
+      auto nodal_level_set = [&](Index e, const Vec3& xi, Scalar& phi) {
         const auto N = E::shape(xi);
-        Scalar phi = 0;
-        for (int k = 0; k < E::num_nodes; ++k) phi += N[k] * enr.level_set(c, mesh.element(e)[static_cast<size_t>(k)]);
-        return phi;
+        phi = 0;
+        for (int k = 0; k < E::num_nodes; ++k) {
+          const Scalar v = enr.level_set(c, mesh.element(e)[static_cast<size_t>(k)]);
+          if (std::isnan(v)) return false;
+          phi += N[k] * v;
+        }
+        return true;
       };
-      auto level_set = [&](const Vec3& x, const std::optional<PointLocation>& where) {
-        return where && in_cut_element(where->element) ? level_set_in(where->element, where->xi) : signed_distance(cut, x);
+      struct At {
+        Scalar phi;
+        bool in_cut_element;
+      };
+      auto level_set = [&](const Vec3& x) {
+        At r{signed_distance(cut, x), false};
+        bool nodal = false;
+        locator.for_each_containing(x, [&](const PointLocation& where) {
+          if (r.in_cut_element) return;
+          Scalar phi;
+          const bool cut_here = in_cut_element(where.element);
+          if ((cut_here || !nodal) && nodal_level_set(where.element, where.xi, phi)) r.phi = phi, nodal = true;
+          r.in_cut_element = cut_here;
+        });
+        return r;
       };
       std::vector<Scalar> phi(X.size());
       for (size_t v = 0; v < X.size(); ++v) {
         const Index vi = static_cast<Index>(v);
-        phi[v] = vi < n_given ? (in_cut_element(points_.element(vi)) ? level_set_in(points_.element(vi), points_.xi(vi))
-                                                                        : signed_distance(cut, X[v]))
-                              : level_set(X[v], locator.locate(X[v]));
+        Scalar nodal = 0;
+        const bool in_cut = vi < n_given && in_cut_element(points_.element(vi));
+        // A given vertex's element is known: no search.
+        if (vi < n_given) phi[v] = nodal_level_set(points_.element(vi), points_.xi(vi), nodal) ? nodal : signed_distance(cut, X[v]);
+        else phi[v] = level_set(X[v]).phi;
         // A given vertex in one of the cut's elements moves with the side its level set gives.
-        if (vi < n_given && in_cut_element(points_.element(vi))) given_side[v] = phi[v] >= 0 ? 0 : 1;
+        if (in_cut) given_side[v] = phi[v] >= 0 ? 0 : 1;
       }
       // Each crossed edge's vertices: [0] on the + side, [1] on the - side (the same if the
       // tissue does not open there). The crossing: the level set's sign change along the edge,
@@ -131,22 +160,27 @@ class EmbeddedSurface {
         const Vec3 Xp = X[static_cast<size_t>(p)], Xm = X[static_cast<size_t>(m)];
         Scalar t0 = 0, t1 = 1, f0 = phi[static_cast<size_t>(p)], f1 = phi[static_cast<size_t>(m)];
         Vec3 at = Xp;
-        std::optional<PointLocation> where;
+        At here{f0, false};
         const Scalar tol = 1e-13 * (std::abs(f0) + std::abs(f1));
-        for (int it = 0, retained = 0; it < 60; ++it) {
+        for (int it = 0, last = 0; it < 60; ++it) {
           const Scalar t = f0 - f1 > 0 ? t0 + (t1 - t0) * f0 / (f0 - f1) : 0.5 * (t0 + t1);
-          at = Xp + t * (Xm - Xp), where = locator.locate(at);
-          const Scalar f = level_set(at, where);
-          if (std::abs(f) <= tol || t1 - t0 <= 1e-14) break;
-          if (f >= 0) {
-            t0 = t, f0 = f;
-            if (++retained > 1) f1 /= 2;  // Illinois: the end kept twice is halved
+          at = Xp + t * (Xm - Xp), here = level_set(at);
+          if (std::abs(here.phi) <= tol || t1 - t0 <= 1e-14) break;
+          // Illinois: an end kept twice in a row has its value halved (no one-sided stall).
+          if (here.phi >= 0) {
+            t0 = t, f0 = here.phi;
+            if (last > 0) f1 /= 2;
+            last = 1;
           } else {
-            t1 = t, f1 = f;
-            retained = 0, f0 /= 2;
+            t1 = t, f1 = here.phi;
+            if (last < 0) f0 /= 2;
+            last = -1;
           }
         }
-        const bool opens = where && in_cut_element(where->element);
+        // A crossing outside the mesh (a chord of the surface leaving a non-convex mesh) is put
+        // on the nearer end, which is inside.
+        if (!locator.locate(at)) at = (at - Xp).norm() <= (at - Xm).norm() ? Xp : Xm;
+        const bool opens = here.in_cut_element;
         std::array<Index, 2> r;
         for (int s = 0; s < (opens ? 2 : 1); ++s) {
           r[static_cast<size_t>(s)] = static_cast<Index>(X.size());
@@ -155,13 +189,17 @@ class EmbeddedSurface {
         if (!opens) r[1] = r[0];
         return crossing[key] = r;
       };
-      std::vector<char> plus(phi.size());
-      for (size_t v = 0; v < phi.size(); ++v) plus[v] = phi[v] >= 0;
       std::vector<Triangle> next;
       next.reserve(triangles.size());
+      struct Kept {  // a triangle across the cut where the tissue does not open
+        Triangle t;    // lone vertex first
+        std::array<Index, 2> ab, ad;
+      };
+      std::vector<Kept> kept;
+      std::vector<char> used(X.size(), 0);  // the crossings split triangles use
       for (const Triangle& t : triangles) {
-        const bool p0 = plus[static_cast<size_t>(t[0])], p1 = plus[static_cast<size_t>(t[1])],
-                   p2 = plus[static_cast<size_t>(t[2])];
+        const bool p0 = phi[static_cast<size_t>(t[0])] >= 0, p1 = phi[static_cast<size_t>(t[1])] >= 0,
+                   p2 = phi[static_cast<size_t>(t[2])] >= 0;
         if (p0 == p1 && p1 == p2) {
           next.push_back(t);
           continue;
@@ -172,51 +210,72 @@ class EmbeddedSurface {
                     d = t[static_cast<size_t>((i + 2) % 3)];
         const std::array<Index, 2> ab = cross(a, b), ad = cross(a, d);
         if (ab[0] == ab[1] && ad[0] == ad[1]) {  // the tissue does not open here
-          next.push_back(t);
+          kept.push_back({{a, b, d}, ab, ad});
           continue;
         }
-        const size_t lone = plus[static_cast<size_t>(a)] ? 0 : 1, other = 1 - lone;
+        const size_t lone = phi[static_cast<size_t>(a)] >= 0 ? 0 : 1, other = 1 - lone;
         next.push_back({a, ab[lone], ad[lone]});
         next.push_back({ab[other], b, d});
         next.push_back({ab[other], d, ad[other]});
+        used.resize(X.size(), 0);
+        for (Index v : {ab[0], ab[1], ad[0], ad[1]}) used[static_cast<size_t>(v)] = 1;
+      }
+      used.resize(X.size(), 0);
+      // A triangle kept whole next to a split one shares an edge whose crossing the split one
+      // uses: it is split there too (no T-junction; from the opposite vertex, using only
+      // crossings already used, so this does not spread).
+      for (const Kept& k : kept) {
+        const auto [a, b, d] = k.t;
+        const bool on_ab = used[static_cast<size_t>(k.ab[0])], on_ad = used[static_cast<size_t>(k.ad[0])];
+        const Index m1 = k.ab[0], m2 = k.ad[0];
+        if (on_ab && on_ad) {
+          next.push_back({a, m1, m2}), next.push_back({m1, b, d}), next.push_back({m1, d, m2});
+        } else if (on_ab) {
+          next.push_back({a, m1, d}), next.push_back({m1, b, d});
+        } else if (on_ad) {
+          next.push_back({b, d, m2}), next.push_back({b, m2, a});
+        } else {
+          next.push_back(k.t);
+        }
       }
       triangles = std::move(next);
     }
-    points_.set_sides(std::move(given_side));
-    // Crossings of triangles that were kept whole are not used: drop them, renumbering.
+    // Crossings no triangle uses (of triangles kept whole) are dropped, renumbering.
     std::vector<Index> renumber(X.size(), -1);
-    for (Index i = 0; i < n_given; ++i) renumber[static_cast<size_t>(i)] = i;
     for (const Triangle& t : triangles)
       for (Index v : t) renumber[static_cast<size_t>(v)] = v;  // marks use
+    for (Index i = 0; i < n_given; ++i) renumber[static_cast<size_t>(i)] = i;
     Index next_id = n_given;
-    std::vector<Vec3> kept;
+    std::vector<Vec3> kept_X;
     std::vector<signed char> kept_side;
     for (size_t v = static_cast<size_t>(n_given); v < X.size(); ++v)
       if (renumber[v] >= 0) {
         renumber[v] = next_id++;
-        kept.push_back(X[v]), kept_side.push_back(crossing_side[v - static_cast<size_t>(n_given)]);
+        kept_X.push_back(X[v]), kept_side.push_back(crossing_side[v - static_cast<size_t>(n_given)]);
       }
     for (Triangle& t : triangles)
       for (Index& v : t) v = renumber[static_cast<size_t>(v)];
-    surface_.triangles = std::move(triangles);
-    surface_.vertices.resize(3, next_id);
-    surface_.vertices.leftCols(n_given) = given_.vertices;
-    Eigen::Matrix3Xd crossing_X(3, static_cast<Index>(kept.size()));
-    for (size_t k = 0; k < kept.size(); ++k) crossing_X.col(static_cast<Index>(k)) = kept[k];
-    surface_.vertices.rightCols(crossing_X.cols()) = crossing_X;
-    crossings_.reset();
-    if (!kept.empty()) crossings_.emplace(mesh, crossing_X, std::move(kept_side));
-    split_for_ = &enr, split_revision_ = enr.revision();
+    TriangleSurface split_surface;
+    split_surface.triangles = std::move(triangles);
+    split_surface.vertices.resize(3, next_id);
+    split_surface.vertices.leftCols(n_given) = given_.vertices;
+    for (size_t k = 0; k < kept_X.size(); ++k) split_surface.vertices.col(n_given + static_cast<Index>(k)) = kept_X[k];
+    std::optional<EmbeddedPoints<E>> crossings;
+    if (!kept_X.empty()) crossings.emplace(mesh, split_surface.vertices.rightCols(next_id - n_given).eval(), std::move(kept_side));
+    // Commit (nothing below throws).
+    surface_ = std::move(split_surface);
+    crossings_ = std::move(crossings);
+    points_.set_sides(std::move(given_side));
+    split_instance_ = enr.instance(), split_revision_ = enr.revision();
   }
 
   TriangleSurface given_, surface_;
   EmbeddedPoints<E> points_;                      ///< the given vertices
   std::optional<EmbeddedPoints<E>> crossings_;    ///< the vertices the cuts added
   Eigen::Matrix3Xd positions_, normals_, given_x_, crossing_x_;
-  std::optional<PointLocator<E>> locator_;  ///< for the crossings, over locator_mesh_
-  const Mesh<E>* locator_mesh_ = nullptr;
-  const Enrichment<E>* split_for_ = nullptr;  ///< the enrichment surface_ was split along
-  std::uint64_t split_revision_ = 0;
+  std::optional<PointLocator<E>> locator_;  ///< for the crossings, over the mesh of locator_instance_'s solver
+  std::uint64_t locator_instance_ = 0;
+  std::uint64_t split_instance_ = 0, split_revision_ = 0;  ///< the enrichment surface_ was split along
 };
 
 }  // namespace plastifem

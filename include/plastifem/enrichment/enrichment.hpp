@@ -39,6 +39,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <atomic>
 #include <cstdint>
 #include <limits>
 #include <map>
@@ -65,9 +66,13 @@ class Enrichment {
   const std::vector<Element>& elements() const { return elements_; }
   Index element_of(size_t k) const { return element_index_[k]; }
   int num_cuts() const { return static_cast<int>(cuts_.size()); }
-  /// Counts the cuts applied and grown: what is derived from the cut elements (an embedded
-  /// point's side) is current while it is unchanged.
+  /// Changes with every cut applied or grown: what is derived from the cut elements (an
+  /// embedded point's side) is current while it and instance() are unchanged. Drawn from one
+  /// counter for the whole program, so two enrichments never share a revision but 0 (uncut).
   std::uint64_t revision() const { return revision_; }
+  /// This enrichment's own number (a solver's; unique in the program, unlike its address,
+  /// which a later solver may reuse).
+  std::uint64_t instance() const { return instance_; }
   /// The level set of cut c at node i (NaN where it was not needed: far from the cut).
   Scalar level_set(int c, Index i) const { return cuts_[c].phi[i]; }
   /// Cut c's surface (the grown one, for a grown cut).
@@ -336,7 +341,7 @@ class Enrichment {
       throw;
     }
     applied_id = c;
-    ++revision_;
+    revision_ = next_number();
     rep.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return rep;
   }
@@ -439,7 +444,12 @@ class Enrichment {
   std::vector<Index> element_index_;   ///< elements_[k] is element element_index_[k]
   std::vector<CutRecord> cuts_;
   std::vector<std::vector<Index>> elements_of_;  ///< node -> elements around it (node_elements)
+  static std::uint64_t next_number() {
+    static std::atomic<std::uint64_t> counter{0};
+    return ++counter;
+  }
   std::uint64_t revision_ = 0;
+  std::uint64_t instance_ = next_number();
 };
 
 }  // namespace plastifem

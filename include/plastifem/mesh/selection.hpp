@@ -211,6 +211,19 @@ class PointLocator {
     return std::nullopt;
   }
 
+  /// Calls f(PointLocation) for every element containing X (within the tolerance: a point on a
+  /// shared face or edge is in each of its elements), in increasing element order.
+  template <class F>
+  void for_each_containing(const Vec3& X, F&& f) const {
+    if (elements_.empty() || !X.allFinite()) return;
+    const Eigen::Array<Index, 3, 1> c = cell_of(X);
+    const Index cell = c[0] + dims_[0] * (c[1] + dims_[1] * c[2]);
+    for (Index k = start_[static_cast<size_t>(cell)]; k < start_[static_cast<size_t>(cell) + 1]; ++k) {
+      const Index e = elements_[static_cast<size_t>(k)];
+      if (const auto xi = locate_in_element<E>(mesh_->element_nodes(e), X, tol_)) f(PointLocation{e, *xi});
+    }
+  }
+
   /// Cells per direction, and the elements listed per cell on average (a query's cost).
   Eigen::Array<Index, 3, 1> grid() const { return dims_; }
   Scalar elements_per_cell() const {

@@ -63,7 +63,13 @@ inline TriangleSurface read_obj(const std::filesystem::path& file) {
         face.push_back(static_cast<Index>(j));
       }
       if (face.size() < 3) fail<IoError>("{}: a face needs at least 3 vertices, got {}", where, face.size());
-      for (size_t k = 1; k + 1 < face.size(); ++k) tris.push_back({face[0], face[k], face[k + 1]});
+      for (size_t k = 1; k + 1 < face.size(); ++k) {
+        const Triangle t{face[0], face[k], face[k + 1]};
+        if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+          fail<IoError>("{}: the face repeats vertex {} (a triangle of no area)", where,
+                        (t[0] == t[1] || t[0] == t[2] ? t[0] : t[1]) + 1);
+        tris.push_back(t);
+      }
     }
   }
   if (tris.empty()) fail<IoError>("{}: no faces ('f' lines)", path);

@@ -391,6 +391,13 @@ inline void write_vtu_cells(const std::filesystem::path& path, Eigen::Matrix3Xd 
                             const VtuOptions& options = {}) {
   using detail::OutType;
   const Index num_points = points.cols();
+  if (nodes_per_cell < 1 || connectivity.size() % static_cast<size_t>(nodes_per_cell) != 0)
+    fail<InvalidArgument>("write_vtu_cells: {} connectivity entries are not cells of {} points", connectivity.size(),
+                          nodes_per_cell);
+  for (size_t k = 0; k < connectivity.size(); ++k)
+    if (connectivity[k] < 0 || connectivity[k] >= num_points)
+      fail<InvalidArgument>("write_vtu_cells: cell {} refers to point {} of {}", k / static_cast<size_t>(nodes_per_cell),
+                            connectivity[k], num_points);
   const size_t ne = connectivity.size() / static_cast<size_t>(nodes_per_cell);
   detail::check_fields(point_data, num_points, "point");
   detail::check_fields(cell_data, static_cast<Index>(ne), "cell");
