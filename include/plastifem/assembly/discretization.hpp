@@ -123,6 +123,7 @@ class Discretization {
     Scalar* values = K ? K->values() : nullptr;
     if (K) K->set_zero();
     [[maybe_unused]] const bool cuts = has_cuts();
+    const bool weighted = mesh_.weighted();
     assembler_.for_each_element(
         [&](Index e) {
           if constexpr (Enriched) {
@@ -134,6 +135,7 @@ class Discretization {
           // Only Ke's lower blocks are read by the scatter (assembly/assembler.hpp).
           element_energy_[e] =
               Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, K ? &Ke : nullptr, kind, true);
+          if (weighted) weigh(e, fe, K ? &Ke : nullptr);
           const auto& c = mesh_.element(e);
           for (int a = 0; a < N; ++a) f.segment<3>(3 * c[a]) += fe.template segment<3>(3 * a);
           if (K) assembler_.add_element_matrix(e, Ke, values);
@@ -178,11 +180,12 @@ class Discretization {
       if constexpr (Enriched) {
         if (const auto* c = enrichment_.element(e)) {
           typename CutElement<E>::SpanVector fx;
-          w += c->template evaluate<Elastic>(law_, current_nodes(e, u), u, fx, nullptr, TangentKind::Projected);
+          w += mesh_.weight(e) *
+               c->template evaluate<Elastic>(law_, current_nodes(e, u), u, fx, nullptr, TangentKind::Projected);
           continue;
         }
       }
-      w += Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, nullptr);
+      w += mesh_.weight(e) * Elastic::template evaluate<E>(data_[e], current_nodes(e, u), fe, nullptr);
     }
     return w;
   }
@@ -194,9 +197,9 @@ class Discretization {
   {
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const Index e = enrichment_.element_of(k);
-      const Eigen::Matrix<Scalar, N, 1> lumped =
-          element_mass<E>(mesh_.element_nodes(e), material().density, MassKind::Lumped).diagonal();
-      assembler_.add_extended_matrix(e, enrichment_.elements()[k].enriched_mass(material().density, kind, lumped),
+      const Scalar rho = material().density * mesh_.weight(e);
+      const Eigen::Matrix<Scalar, N, 1> lumped = element_mass<E>(mesh_.element_nodes(e), rho, MassKind::Lumped).diagonal();
+      assembler_.add_extended_matrix(e, enrichment_.elements()[k].enriched_mass(rho, kind, lumped),
                                      M.values());
     }
   }
@@ -207,7 +210,7 @@ class Discretization {
   {
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const CutElement<E>& c = enrichment_.elements()[k];
-      const auto f = c.enriched_body_force(material().density, g, kind);
+      const auto f = c.enriched_body_force(material().density * mesh_.weight(enrichment_.element_of(k)), g, kind);
       for (size_t j = 0; j < f.size(); ++j) F.template segment<3>(3 * c.enriched[j].row) += f[j];
     }
   }
@@ -282,6 +285,14 @@ class Discretization {
     if constexpr (Enriched) return typename Elastic::Law(m);
     else return (void)m, NoCuts{};
   }
+  /// Element e's force, tangent and energy times its weight (Mesh::set_element_weights).
+  template <class F, class K>
+  void weigh(Index e, F& f, K* Ke) const {
+    const Scalar w = mesh_.weight(e);
+    f *= w;
+    if (Ke) *Ke *= w;
+    element_energy_[e] *= w;
+  }
   /// An enriched element's force and tangent over its span (enrichment/cut_element.hpp).
   template <class Piecewise = CutElement<E>>
   void assemble_enriched(const Piecewise& c, Index e, const Vector& u, Vector& f, BlockSymmetricMatrix* K,
@@ -289,6 +300,7 @@ class Discretization {
     typename Piecewise::SpanVector fe;
     typename Piecewise::SpanMatrix Ke;
     element_energy_[e] = c.template evaluate<Elastic>(law_, current_nodes(e, u), u, fe, K ? &Ke : nullptr, kind);
+    if (mesh_.weighted()) weigh(e, fe, K ? &Ke : nullptr);
     const auto& conn = mesh_.element(e);
     for (int a = 0; a < N; ++a) f.template segment<3>(3 * conn[a]) += fe.template segment<3>(3 * a);
     for (size_t k = 0; k < c.enriched.size(); ++k)

@@ -44,7 +44,8 @@ void assemble_mass(const Mesh<E>& mesh, const Assembler<E>& assembler, Scalar de
                    BlockSymmetricMatrix& M) {
   M = assembler.zero_matrix();
   for (Index e = 0; e < mesh.num_elements(); ++e)
-    assembler.add_element_scalar_matrix(e, element_mass<E>(mesh.element_nodes(e), density, kind), M.values());
+    assembler.add_element_scalar_matrix(e, element_mass<E>(mesh.element_nodes(e), density * mesh.weight(e), kind),
+                                        M.values());
 }
 
 /// Nodal loads of a body force per unit mass g (gravity), paired with the mass matrix so that
@@ -59,13 +60,14 @@ Vector body_force_load(const Mesh<E>& mesh, Scalar density, const Vec3& g, MassK
   for (Index e = 0; e < mesh.num_elements(); ++e) {
     const ElementNodes<E> X = mesh.element_nodes(e);
     const auto& c = mesh.element(e);
+    const Scalar rho = density * mesh.weight(e);
     if (kind == MassKind::Lumped) {
-      const auto m = element_mass<E>(X, density, MassKind::Lumped);
+      const auto m = element_mass<E>(X, rho, MassKind::Lumped);
       for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * c[a]) += m(a, a) * g;
       continue;
     }
     for (int k = 0; k < q.size; ++k) {
-      const Scalar dm = density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
+      const Scalar dm = rho * q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
       const auto Nk = E::shape(q.points[k]);
       for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * c[a]) += dm * Nk[a] * g;
     }

@@ -75,6 +75,22 @@ class Mesh {
     return ids;
   }
 
+  // --- element weights (a cage's partly filled cells: embedding/cage.hpp) -----------------
+  /// Scales each element's mass, body force, internal force, tangent and strain energy by w_e
+  /// (the fraction of a cage cell that is tissue); stresses are the material's. Positive and
+  /// finite, one per element; empty: every weight 1.
+  void set_element_weights(std::vector<Scalar> w) {
+    if (!w.empty() && static_cast<Index>(w.size()) != num_elements())
+      fail<MeshError>("element weights: {} for {} elements", w.size(), num_elements());
+    for (size_t e = 0; e < w.size(); ++e)
+      if (!(w[e] > 0) || !std::isfinite(w[e]))
+        fail<MeshError>("element weights: element {} has weight {} (positive and finite)", e, w[e]);
+    weights_ = std::move(w);
+  }
+  bool weighted() const { return !weights_.empty(); }
+  Scalar weight(Index e) const { return weights_.empty() ? Scalar(1) : weights_[static_cast<size_t>(e)]; }
+  const std::vector<Scalar>& element_weights() const { return weights_; }
+
   // --- named sets (from a generator, a file's physical groups, or a selection) -----------
   void add_node_set(const std::string& name, std::vector<Index> ids) {
     for (Index i : ids)
@@ -132,6 +148,7 @@ class Mesh {
   std::vector<Connectivity> elements_;
   std::map<std::string, std::vector<Index>> node_sets_;
   std::map<std::string, std::vector<FaceRef>> face_sets_;
+  std::vector<Scalar> weights_;  ///< per element, or empty: all 1
   MeshReport report_;
 };
 
@@ -230,6 +247,7 @@ Mesh<E> drop_unused_nodes(const Mesh<E>& mesh, std::vector<Index>* old_to_new = 
     out.add_node_set(name, std::move(kept));
   }
   for (const auto& [name, faces] : mesh.face_sets()) out.add_face_set(name, faces);
+  out.set_element_weights(mesh.element_weights());
   if (old_to_new) *old_to_new = std::move(map);
   return out;
 }
