@@ -10,8 +10,10 @@
 //  - open or inward-facing surfaces and bad cell sizes are refused.
 #include "catch.hpp"
 
+#include <plastifem/cutting.hpp>
 #include <plastifem/embedding/cage.hpp>
 #include <plastifem/embedding/embedded_points.hpp>
+#include <plastifem/plastifem.hpp>
 
 #include <numbers>
 
@@ -88,4 +90,124 @@ TEST_CASE("cage: open or inward surfaces and bad cell sizes are refused", "[cage
   TriangleSurface inward = box;
   for (Triangle& t : inward.triangles) std::swap(t[1], t[2]);
   CHECK_THROWS_AS(cage_around<Hex8>(inward, 0.25), InvalidArgument);
+}
+
+// ---- element weights (Mesh::set_element_weights) ---------------------------------------------
+
+namespace {
+
+template <FiniteElement E>
+Mesh<E> weighted(Mesh<E> mesh, Scalar w) {
+  mesh.set_element_weights(std::vector<Scalar>(static_cast<size_t>(mesh.num_elements()), w));
+  return mesh;
+}
+
+Scalar relative(const Vector& a, const Vector& b) { return (a - b).norm() / b.norm(); }
+
+}  // namespace
+
+TEMPLATE_TEST_CASE("element weights: a uniform weight scales mass, load and stiffness alike, so gravity's "
+                   "statics and dynamics do not change",
+                   "[cage][weights]", Hex8, Tet4) {
+  using E = TestType;
+  // M, f_int, K and rho g all carry the factor w, so the equations of motion are the unweighted
+  // ones times w: the same u(t). w = 0.37 is not a power of two, so the factor is not exact in
+  // floating point; the tolerances are the Newton and CG tolerances' (1e-10, 1e-8) reach.
+  const Mesh<E> mesh = bar_mesh<E>(4, 1, 1);
+  const Material soft{3000, 0.3, 1.0};
+  for (const MassKind mass : {MassKind::Consistent, MassKind::Lumped}) {
+    SolverSettings s;
+    s.mass = mass;
+    s.newton.residual_tolerance = 1e-10;
+    Solver<E, Corotational> plain(mesh, soft, s), scaled(weighted(mesh, 0.37), soft, s);
+    for (auto* solver : {&plain, &scaled}) {
+      solver->fix(mesh.node_set("xmin"));
+      solver->add_gravity(Vec3(0, 0, -9.81));
+    }
+    CHECK(std::abs(scaled.mass() - 0.37 * plain.mass()) < 1e-13 * plain.mass());
+    for (int k = 0; k < 10; ++k) plain.step(0.01), scaled.step(0.01);
+    INFO((mass == MassKind::Lumped ? "lumped" : "consistent") << ": after 10 steps u differs by "
+                                                                << relative(scaled.displacement(), plain.displacement()));
+    CHECK(relative(scaled.displacement(), plain.displacement()) < 1e-7);
+    CHECK(relative(scaled.velocity(), plain.velocity()) < 1e-6);
+    CHECK(std::abs(scaled.strain_energy() - 0.37 * plain.strain_energy()) < 1e-6 * plain.strain_energy());
+    CHECK(std::abs(scaled.kinetic_energy() - 0.37 * plain.kinetic_energy()) < 1e-6 * plain.kinetic_energy());
+    plain.solve_static(2), scaled.solve_static(2);
+    CHECK(relative(scaled.displacement(), plain.displacement()) < 1e-9);
+  }
+}
+
+TEST_CASE("element weights: a bar of two weighted halves stretches as two springs in series", "[cage][weights]") {
+  // Linear elasticity, Poisson 0, symmetry planes at x, y, z = 0 and an axial end load F: the
+  // stress is uniform and each half a spring of stiffness w E A / L_half, so the end moves
+  // F L1 / (w1 E A) + F L2 / (w2 E A) (Hex8 reproduces the uniform state exactly). A point load
+  // on a uniformly weighted bar moves by 1 / w times the unweighted one.
+  const Mesh<Hex8> bar = bar_mesh<Hex8>(4, 1, 1);
+  const Material steel_like{1000, 0.0, 1.0};
+  const Scalar F = 2.0, w1 = 0.25, w2 = 0.8;
+  Mesh<Hex8> halves = bar;
+  std::vector<Scalar> w;
+  for (Index e = 0; e < bar.num_elements(); ++e) w.push_back(bar.element_nodes(e).row(0).mean() < 2 ? w1 : w2);
+  halves.set_element_weights(w);
+  Solver<Hex8, Linear> s(halves, steel_like);
+  s.fix(bar.node_set("xmin"), {true, false, false});
+  s.fix(bar.node_set("ymin"), {false, true, false});
+  s.fix(bar.node_set("zmin"), {false, false, true});
+  s.add_nodal_force(bar.node_set("xmax"), Vec3(F / 4, 0, 0));
+  s.solve_static();
+  const Scalar expected = F * 2 / (w1 * 1000) + F * 2 / (w2 * 1000);
+  Scalar worst = 0;
+  for (Index n : bar.node_set("xmax")) worst = std::max(worst, std::abs(s.displacement(n).x() - expected) / expected);
+  INFO("end displacement relative error " << worst);
+  CHECK(worst < 1e-10);
+
+  auto tip_under_point_load = [&](Scalar uniform) {
+    Solver<Hex8, Linear> p(weighted(bar, uniform), Material{1000, 0.3, 1.0});
+    p.fix(bar.node_set("xmin"));
+    p.add_point_force(Vec3(4, 0.5, 0.5), Vec3(0, 0, -1));
+    p.solve_static();
+    return p.displacement(bar.node_set("xmax")[0]).z();
+  };
+  const Scalar unweighted = tip_under_point_load(1.0);
+  CHECK(std::abs(tip_under_point_load(0.4) * 0.4 - unweighted) < 1e-10 * std::abs(unweighted));
+}
+
+TEMPLATE_TEST_CASE("element weights: a cut body falls and bends as the unweighted one (enriched mass, body force "
+                   "and pieces weighted)",
+                   "[cage][weights][enrichment]", Heaviside, ShiftedHeaviside) {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  const Material soft{3000, 0.3, 1.0};
+  Solver<Hex8, Corotational, NoPlasticity, TestType> plain(mesh, soft), scaled(weighted(mesh, 0.37), soft);
+  for (auto* solver : {&plain, &scaled}) {
+    solver->fix(mesh.node_set("xmin"));
+    solver->add_gravity(Vec3(0, 0, -9.81));
+    solver->cut(CutPlane(Vec3(2.3, 0, 0), Vec3(1, 0.2, 0)));
+  }
+  CHECK(std::abs(scaled.mass() - 0.37 * plain.mass()) < 1e-13 * plain.mass());
+  for (int k = 0; k < 10; ++k) plain.step(0.01), scaled.step(0.01);
+  INFO("after 10 steps u differs by " << relative(scaled.displacement(), plain.displacement()));
+  CHECK(relative(scaled.displacement(), plain.displacement()) < 1e-7);
+  CHECK(std::abs(scaled.strain_energy() - 0.37 * plain.strain_energy()) < 1e-6 * plain.strain_energy());
+}
+
+TEMPLATE_TEST_CASE("cage: the solver's mass is density times the weighted volume", "[cage][weights]", Hex8, Tet4,
+                   Tet10) {
+  using E = TestType;
+  const Cage<E> cage = cage_around<E>(sphere_surface(Vec3::Zero(), 1.0, 3), 0.3);
+  REQUIRE(cage.mesh.weighted());
+  for (Index e = 0; e < cage.mesh.num_elements(); ++e) REQUIRE(cage.mesh.weight(e) == cage.weight(e));
+  for (const MassKind kind : {MassKind::Consistent, MassKind::Lumped}) {
+    SolverSettings s;
+    s.mass = kind;
+    const Solver<E, Corotational> solver(cage.mesh, Material{3000, 0.45, 1070}, s);
+    INFO("mass " << solver.mass() << " against " << 1070 * cage.weighted_volume());
+    CHECK(std::abs(solver.mass() - 1070 * cage.weighted_volume()) < 1e-12 * solver.mass());
+  }
+  std::vector<Scalar> bad(static_cast<size_t>(cage.mesh.num_elements()), 1.0);
+  Mesh<E> m = cage.mesh;
+  CHECK_THROWS_AS(m.set_element_weights(std::vector<Scalar>(3, 1.0)), MeshError);
+  bad[1] = 0;
+  CHECK_THROWS_AS(m.set_element_weights(bad), MeshError);
+  bad[1] = std::numeric_limits<Scalar>::quiet_NaN();
+  CHECK_THROWS_AS(m.set_element_weights(bad), MeshError);
 }

@@ -13,7 +13,8 @@
 //
 // Kept cells: those with a positive fraction, and those a triangle of the surface meets (so that
 // every vertex of the surface lies in the cage and can be embedded in it). An element's mass
-// and stiffness are weighted by its cell's fraction (Cage::weight), at least one line's share,
+// and stiffness are weighted by its cell's fraction (Cage::weight, set as the mesh's element
+// weights: Mesh::set_element_weights), at least one line's share,
 // 1 / s^2: a cell kept for a triangle whose lines measured no inside still carries some (the
 // solver needs it), the least the measurement can tell from none.
 //
@@ -220,6 +221,9 @@ Cage<E> cage_around(const TriangleSurface& s, Scalar h, const CageOptions& optio
     if constexpr (std::is_same_v<E, Tet4>) cage.mesh = std::move(tet4);
     else cage.mesh = promote_to_tet10(tet4);
   }
+  std::vector<Scalar> weights(cage.fraction.size());
+  for (size_t e = 0; e < weights.size(); ++e) weights[e] = cage.weight(static_cast<Index>(e));
+  cage.mesh.set_element_weights(std::move(weights));
   return cage;
 }
 
