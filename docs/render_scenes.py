@@ -33,7 +33,8 @@ SCENES = {
         "zoom": 0.8,
     },
     "liver_cage": {
-        "frames": [(0, "rest (on its table)"), (15, "left lobe lifted 25 mm, t = 1.5 s"), (30, "released: t = 3 s")],
+        "frames": [(0, "rest"), (20, "left lobe lifted 25 mm, t = 2 s"),
+                   (35, "released: t = 3.5 s")],
         "camera": ((0.15, -1.0, 0.35), (0, 0, 1)),
         "wireframe": True,
         "size": (560, 380),
