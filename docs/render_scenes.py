@@ -8,7 +8,7 @@ DIR is the example's --out directory from a default run (a frame every 10 steps 
 frame k is t = k / 10 s). Each panel draws the smooth embedded surface (DIR/SCENE_surface_NNNN.vtu,
 shaded with the normals the example wrote), coloured by the magnitude of its displacement in
 mm, one colour scale for the three panels; the simulation mesh is drawn as a faint wireframe
-(the fat layer's and the vessel's mesh, the liver's cage) where it helps to see the motion.
+where it helps to see the motion (the vessel's mesh, the liver's cage).
 """
 import sys
 
