@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Renders the surgical scenes' embedded surfaces at three moments, for the README.
 
-Needs Debian's python3-vtk9 (run with /usr/bin/python3; offscreen, no display needed):
-    /usr/bin/python3 docs/render_scenes.py fat_grasp|vessel_twist|liver_cage DIR OUT.png
+Needs Debian's python3-vtk9 (run with /usr/bin/python3; under xvfb-run on a machine without a
+display, as Debian's VTK renders offscreen through X):
+    xvfb-run -a /usr/bin/python3 docs/render_scenes.py fat_grasp|vessel_twist|liver_cage DIR OUT.png
 
 DIR is the example's --out directory from a default run (a frame every 10 steps of 10 ms:
 frame k is t = k / 10 s). Each panel draws the smooth embedded surface (DIR/SCENE_surface_NNNN.vtu,
