@@ -76,8 +76,10 @@ int main(int argc, char** argv) try {
     if ((mesh.node(i) - grasped).head<2>().norm() > 0.02) table.push_back(i);
 
   SolverSettings st;
-  st.rayleigh_mass = 5;          // settles the organ's slow sway after the release
-  st.rayleigh_stiffness = 0.01;  // tissue's viscosity: takes the snap of the release
+  st.rayleigh_mass = 5;  // settles the organ's sway after the release
+  // The release's snap: generalized-alpha's numerical damping. (Not stiffness-proportional
+  // damping, which made the vessel scene's twist lag far beyond its size: docs/scenes.md.)
+  st.newmark = NewmarkSettings::generalized_alpha(0.5);
   Solver<Hex8, Corotational> s(mesh, Material{5e3, 0.45, 1070}, st);
   s.fix(table);
   s.add_gravity(Vec3(0, 0, -9.81));

@@ -1,9 +1,8 @@
 // A vessel twisted and released (issue 34 scene b): a tube of inner radius 3 mm, outer 4 mm,
 // 4 cm long (Hex8: 24 around, 20 along, 1 through the wall), clamped at x = 0; the end x = L is
 // turned about the axis by a prescribed rotation ramped smoothly to 90 degrees over 1 s, held
-// 0.5 s, then let go: the tube unwinds, with Rayleigh damping, for 1.5 s. Elastic, Neo-Hookean
-// (which, unlike corotational, resists inverting an element in the release's snap); E = 500 kPa,
-// nu = 0.45, 1060 kg/m^3 (an artery's wall, order of magnitude).
+// 0.5 s, then let go: the tube unwinds, with mass damping, for 1.5 s. Elastic, Neo-Hookean;
+// E = 500 kPa, nu = 0.45, 1060 kg/m^3 (an artery's wall, order of magnitude).
 //
 //   vessel_twist [--steps N] [--every K] [--out DIR]
 //
