@@ -708,13 +708,12 @@ std::vector<Index> Solver<E, Elastic, Plastic, Enrich>::held_enriched_dofs() con
   std::vector<Index> held;
   if constexpr (enriched) {
     const auto& constrained = constraints_.constrained_dofs();
-    for (Index i = 0; i < mesh().num_nodes(); ++i) {
-      bool any = false;
-      for (int d = 0; d < 3; ++d) any = any || (3 * i + d < static_cast<Index>(constrained.size()) && constrained[3 * i + d]);
-      if (!any) continue;
-      for (Index r : body_.enrichment().rows_of(i))
-        for (int d = 0; d < 3; ++d) held.push_back(3 * r + d);
-    }
+    // Per component: a node held in z only (a sheet on a tray) keeps its pieces free to part in
+    // x and y; holding every enriched component kept a crack through it shut.
+    for (Index i = 0; i < mesh().num_nodes(); ++i)
+      for (int d = 0; d < 3; ++d)
+        if (3 * i + d < static_cast<Index>(constrained.size()) && constrained[3 * i + d])
+          for (Index r : body_.enrichment().rows_of(i)) held.push_back(3 * r + d);
   }
   return held;
 }
