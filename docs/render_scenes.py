@@ -3,7 +3,7 @@
 
 Needs Debian's python3-vtk9 (run with /usr/bin/python3; under xvfb-run on a machine without a
 display, as Debian's VTK renders offscreen through X):
-    xvfb-run -a /usr/bin/python3 docs/render_scenes.py fat_grasp|vessel_twist|liver_cage|sheet_tear DIR OUT.png
+    xvfb-run -a /usr/bin/python3 docs/render_scenes.py fat_grasp|vessel_twist|liver_cage|liver_cut|sheet_tear DIR OUT.png
 
 DIR is the example's --out directory from a default run (a frame every 10 steps of 10 ms:
 frame k is t = k / 10 s). Each panel draws the smooth embedded surface (DIR/SCENE_surface_NNNN.vtu,
@@ -40,6 +40,13 @@ SCENES = {
         "wireframe": True,
         "size": (560, 380),
         "zoom": 0.8,
+    },
+    "liver_cut": {
+        "frames": [(0, "rest"), (13, "the blade half-way: t = 1.3 s"), (25, "the lobe cut off: t = 2.5 s")],
+        "camera": ((0.0, -0.8, 1.0), (0, 0, 1)),
+        "wireframe": False,
+        "size": (520, 380),
+        "zoom": 0.75,
     },
     "sheet_tear": {
         "frames": [(0, "rest, nicked at the left"), (6, "tearing: t = 0.6 s"), (15, "torn through: t = 1.5 s")],

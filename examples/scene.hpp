@@ -1,5 +1,5 @@
 #pragma once
-// What the surgical scenes (fat_grasp, vessel_twist, liver_cage, sheet_tear) share: their command line
+// What the surgical scenes (fat_grasp, vessel_twist, liver_cage, liver_cut, sheet_tear) share: their command line
 // (--steps N, --every K, --out DIR, --help), a progress line, and the per-step timings they end
 // with; and the skin of a Hex8 mesh as a finer triangle surface to embed in it.
 #include <plastifem/embedding/triangle_surface.hpp>
