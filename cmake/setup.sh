@@ -11,10 +11,11 @@
 #                                 installs clang; fuzz/README.md)
 #   bash cmake/setup.sh build-time  what including the toolkit costs the compiler
 #                                 (docs/build_time.md): CPU seconds and peak memory per translation unit
-#   bash cmake/setup.sh bench [step|static|policy|io] [options]
+#   bash cmake/setup.sh bench [step|static|policy|io|scenes] [options]
 #                                 a benchmark (tables + CSV into build/bench/): ms per Newmark
 #                                 step (default), per static solve, or the NoPlasticity /
-#                                 NoEnrichment overhead ratio, or per VTU write and read
+#                                 NoEnrichment overhead ratio, or per VTU write and read, or the
+#                                 surgical scenes' step and event times (bench/scenes.sh)
 #   bash cmake/setup.sh study     the accuracy-vs-cost study (docs/study.md): CSV into build/bench/,
 #                                 plot into docs/speed_accuracy.png (~7 min, single-threaded)
 # Environment: BUILD_DIR (default build, or build-sanitize), JOBS (default: number of cores).
@@ -98,6 +99,12 @@ case "$what" in
   bench)
     which=step; args=("${@:2}")
     case "${2:-}" in step|static|policy|io) which=$2; args=("${@:3}") ;; esac
+    if [ "${2:-}" = scenes ]; then
+      cmake --build "$build" -j "$jobs" --target fat_grasp vessel_twist liver_cage liver_cut sheet_tear
+      mkdir -p "$build/bench"
+      bash bench/scenes.sh "$build" "$build/bench/scenes.csv" "${@:3}"
+      exit 0
+    fi
     target=bench_$which; [ "$which" = policy ] && target=bench_policy_overhead
     cmake --build "$build" -j "$jobs" --target "$target"
     mkdir -p "$build/bench"

@@ -5,7 +5,7 @@
 // corotational with vertex-blended plasticity: yield 400 Pa, flow rate 1 / s, so the pull leaves
 // a permanent bump where it was grasped.
 //
-//   fat_grasp [--steps N] [--every K] [--out DIR]
+//   fat_grasp [--steps N] [--every K] [--out DIR] [--threads N] [--mode accurate|realtime] [--csv FILE]
 //
 // Writes DIR/fat_grasp.pvd (the layer: displacement, material_displacement = the permanent set,
 // von_mises per element) and DIR/fat_grasp_surface.pvd (its skin, embedded and moved with it),
@@ -57,7 +57,7 @@ Scalar grasper_height(Scalar t) {
 
 int main(int argc, char** argv) try {
   const scene::Options o = scene::parse(argc, argv, 300,
-                                        "usage: fat_grasp [--steps N] [--every K] [--out DIR]\n"
+                                        "usage: fat_grasp [options]\n"
                                         "  a fat layer grasped, lifted 15 mm past yield, released: a plastic bump\n"
                                         "  (300 steps of 10 ms by default: lift 1 s, hold 0.5 s, relax 1.5 s)\n");
   std::filesystem::create_directories(o.out);
@@ -69,6 +69,7 @@ int main(int argc, char** argv) try {
   // generalized-alpha's numerical damping takes them, mass damping settles the rest.
   st.rayleigh_mass = 5;
   st.newmark = NewmarkSettings::generalized_alpha(0.5);
+  o.apply(st);  // --threads, --mode
   PlasticParams p;
   p.yield_stress = 400;  // Pa: the lift's stretch reaches a few kPa near the grasp, the rest stays elastic
   p.flow_rate = 1.0;
@@ -103,7 +104,7 @@ int main(int argc, char** argv) try {
   };
   write();
 
-  scene::Timings timings(o.steps);
+  scene::Timings timings(o, "fat_grasp");
   for (int k = 1; k <= o.steps; ++k) {
     const StepReport r = s.step(dt);
     if (grasp && s.time() >= t_release - 1e-9) {  // let go: the layer moves freely from here on

@@ -8,7 +8,7 @@
 // 12 mm of a point on the lobe's top, lifts them 25 mm over 1 s, holds 0.5 s and lets go; 1.5 s
 // of damped relaxation follow.
 //
-//   liver_cage [--steps N] [--every K] [--out DIR]
+//   liver_cage [--steps N] [--every K] [--out DIR] [--threads N] [--mode accurate|realtime] [--csv FILE]
 //
 // Writes DIR/liver_cage.pvd (the cage: displacement, its cells' inside fraction),
 // DIR/liver_cage_surface.pvd (the smooth surface, with normals) and DIR/liver_cage_force.csv
@@ -44,7 +44,7 @@ Scalar grasper_height(Scalar t) {
 
 int main(int argc, char** argv) try {
   const scene::Options o = scene::parse(argc, argv, 350,
-                                        "usage: liver_cage [--steps N] [--every K] [--out DIR]\n"
+                                        "usage: liver_cage [options]\n"
                                         "  a liver-like organ in a hex cage, grasped at its left lobe, lifted 25 mm and "
                                         "released\n"
                                         "  (350 steps of 10 ms by default: settle 0.5 s, lift 1 s, hold 0.5 s, relax 1.5 s)\n");
@@ -80,6 +80,7 @@ int main(int argc, char** argv) try {
   // The release's snap: generalized-alpha's numerical damping. (Not stiffness-proportional
   // damping, which made the vessel scene's twist lag far beyond its size: docs/scenes.md.)
   st.newmark = NewmarkSettings::generalized_alpha(0.5);
+  o.apply(st);  // --threads, --mode
   Solver<Hex8, Corotational> s(mesh, Material{5e3, 0.45, 1070}, st);
   s.fix(table);
   s.add_gravity(Vec3(0, 0, -9.81));
@@ -115,7 +116,7 @@ int main(int argc, char** argv) try {
   auto csv = fmt::output_file((std::filesystem::path(o.out) / "liver_cage_force.csv").string());
   csv.print("time,lift,force_x,force_y,force_z\n");
 
-  scene::Timings timings(o.steps);
+  scene::Timings timings(o, "liver_cage");
   Scalar peak = 0, peak_time = 0;
   for (int k = 1; k <= o.steps; ++k) {
     if (k == static_cast<int>(std::lround(t_grasp / dt)) + 1)  // settled: the grasper takes hold

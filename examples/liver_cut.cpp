@@ -9,7 +9,7 @@
 // cage is not remeshed) and the smooth surface opens along it; the lobe, cut off, stays in the
 // grasper.
 //
-//   liver_cut [--steps N] [--every K] [--out DIR]
+//   liver_cut [--steps N] [--every K] [--out DIR] [--threads N] [--mode accurate|realtime] [--csv FILE]
 //
 // Writes DIR/liver_cut.pvd (the cage, each cut cell written as its pieces) and
 // DIR/liver_cut_surface.pvd (the smooth surface, split along the cut, with normals), prints
@@ -71,7 +71,7 @@ Vec3 grasper_offset(Scalar t) {
 
 int main(int argc, char** argv) try {
   const scene::Options o = scene::parse(argc, argv, 250,
-                                        "usage: liver_cut [--steps N] [--every K] [--out DIR]\n"
+                                        "usage: liver_cut [options]\n"
                                         "  a liver's left lobe, held by a grasper, cut off by a blade along a curved path\n"
                                         "  (250 steps of 10 ms by default: settle 0.3 s, retract 1 s, the blade from 0.5 s "
                                         "to 2.1 s)\n");
@@ -108,6 +108,7 @@ int main(int argc, char** argv) try {
   SolverSettings st;
   st.rayleigh_mass = 5;                                  // the organ's sway settles
   st.newmark = NewmarkSettings::generalized_alpha(0.5);  // the snap of each cut cell (sheet_tear)
+  o.apply(st);  // --threads, --mode
   CuttingSolver s(mesh, Material{5e3, 0.45, 1070}, st);
   s.fix(held);
   s.fix(bearing, DofMask{false, false, true});
@@ -128,9 +129,8 @@ int main(int argc, char** argv) try {
   };
   write();
 
-  scene::Timings timings(o.steps);
+  scene::Timings timings(o, "liver_cut", "cut growth (cut or grow_cut)");
   std::optional<CutHandle> cut;
-  std::vector<double> cut_ms;  // each growth: the cut and re-patterning
   int reached = 0;             // path pieces the blade has gone
   for (int k = 1; k <= o.steps; ++k) {
     if (k == static_cast<int>(std::lround(t_grasp / dt)) + 1)
@@ -148,7 +148,7 @@ int main(int argc, char** argv) try {
       } else {
         s.grow_cut(*cut, blade_sheet(n));
       }
-      if (cut) cut_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      if (cut) timings.event(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       if (cut && s.last_cut_report().cut_elements > 0 && n % 8 == 0)
         fmt::print("  t = {:.2f} s: the blade {:.0f} mm along its path, {} dofs\n", s.time(), 1e3 * 0.13 * n / columns,
                    s.num_dofs());
@@ -159,12 +159,6 @@ int main(int argc, char** argv) try {
                                      s.num_dofs()));
   }
   timings.summary();
-  if (!cut_ms.empty()) {
-    std::vector<double> sorted = cut_ms;
-    std::sort(sorted.begin(), sorted.end());
-    fmt::print("cut growth (cut or grow_cut): median {:.2f} ms, max {:.2f} ms over {} growths\n",
-               sorted[sorted.size() / 2], sorted.back(), sorted.size());
-  }
   fmt::print("wrote {} and {}\n", volume.pvd_path().string(), surface.pvd_path().string());
   return 0;
 } catch (const std::exception& e) {

@@ -1,7 +1,8 @@
 #pragma once
 // What the surgical scenes (fat_grasp, vessel_twist, liver_cage, liver_cut, sheet_tear) share: their command line
-// (--steps N, --every K, --out DIR, --help), a progress line, and the per-step timings they end
-// with; and the skin of a Hex8 mesh as a finer triangle surface to embed in it.
+// (--steps N, --every K, --out DIR, --threads N, --mode accurate|realtime, --csv FILE, --help),
+// a progress line, and the per-step timings they end with (and append to FILE as a bench row:
+// bench/scenes.sh); and the skin of a Hex8 mesh as a finer triangle surface to embed in it.
 #include <plastifem/embedding/triangle_surface.hpp>
 #include <plastifem/plastifem.hpp>
 
@@ -11,6 +12,9 @@
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <string>
 #include <string_view>
@@ -22,7 +26,22 @@ struct Options {
   int steps = 0;   ///< time steps (the scene's default until --steps)
   int every = 10;  ///< a PVD frame every K steps
   std::string out = "out";
+  int threads = 1;  ///< SolverSettings::threads
+  plastifem::NewmarkMode mode = plastifem::NewmarkMode::Accurate;
+  std::string csv;  ///< where to append the timings as a CSV row (none: empty)
+
+  /// Sets the threads and the mode on the scene's settings (after it has chosen its scheme).
+  void apply(plastifem::SolverSettings& st) const {
+    st.threads = threads;
+    st.newmark.mode = mode;
+  }
+  const char* mode_name() const { return mode == plastifem::NewmarkMode::RealTime ? "realtime" : "accurate"; }
 };
+
+/// The flags every scene takes, for its usage text.
+inline constexpr const char* common_usage =
+    "  --steps N   time steps      --every K   a PVD frame every K steps   --out DIR   output folder\n"
+    "  --threads N  threads (1)    --mode accurate|realtime (accurate)      --csv FILE  append the timings\n";
 
 /// A whole positive number, or an error naming the option (std::stoi would accept "12abc" and
 /// throw a bare "stoi" for "abc").
@@ -48,41 +67,73 @@ inline Options parse(int argc, char** argv, int default_steps, const char* usage
     if (a == "--steps") o.steps = positive_int(a, value());
     else if (a == "--every") o.every = positive_int(a, value());
     else if (a == "--out") o.out = value();
+    else if (a == "--threads") o.threads = positive_int(a, value());
+    else if (a == "--csv") o.csv = value();
+    else if (a == "--mode") {
+      const std::string m = value();
+      if (m == "accurate") o.mode = plastifem::NewmarkMode::Accurate;
+      else if (m == "realtime") o.mode = plastifem::NewmarkMode::RealTime;
+      else plastifem::fail<plastifem::InvalidArgument>("--mode needs accurate or realtime, got '{}'", m);
+    }
     else if (a == "--help" || a == "-h") {
-      fmt::print("{}", usage);
+      fmt::print("{}{}", usage, common_usage);
       std::exit(0);
     } else plastifem::fail<plastifem::InvalidArgument>("unknown option '{}' (try --help)", a);
   }
   return o;
 }
 
-/// Keeps each step's wall time; prints a progress line every tenth of the run and the median
-/// and largest step time at the end.
+/// Keeps each step's wall time, and the times of the scene's events (a cut's growth, a tear's);
+/// prints a progress line every tenth of the run; ends with the median and largest of each,
+/// appended to Options::csv as a row when one is given.
 class Timings {
  public:
-  explicit Timings(int steps) : steps_(steps) { ms_.reserve(static_cast<size_t>(steps)); }
+  /// `event` names what event() times ("" for a scene without events).
+  Timings(const Options& o, std::string scene, std::string event = {})
+      : o_(o), scene_(std::move(scene)), event_(std::move(event)) {
+    ms_.reserve(static_cast<size_t>(o.steps));
+  }
 
   /// Records step k (1-based) and prints the progress line when it is due; `extra` is appended.
   void record(int k, const plastifem::StepReport& r, const std::string& extra = {}) {
     ms_.push_back(r.wall_ms);
-    if (k % std::max(1, steps_ / 10) == 0 || k == steps_)
-      fmt::print("  [{:3.0f}%] step {:4d}/{}  {:6.2f} ms  Newton {:2d}  CG {:4d}  {}\n", 100.0 * k / steps_, k, steps_,
-                 r.wall_ms, r.newton_iterations, r.linear_iterations, extra);
+    if (k % std::max(1, o_.steps / 10) == 0 || k == o_.steps)
+      fmt::print("  [{:3.0f}%] step {:4d}/{}  {:6.2f} ms  Newton {:2d}  CG {:4d}  {}\n", 100.0 * k / o_.steps, k,
+                 o_.steps, r.wall_ms, r.newton_iterations, r.linear_iterations, extra);
   }
-  double median() const {
-    std::vector<double> s = ms_;
-    if (s.empty()) return 0;
-    std::nth_element(s.begin(), s.begin() + static_cast<long>(s.size() / 2), s.end());
-    return s[s.size() / 2];
-  }
-  double max() const { return ms_.empty() ? 0 : *std::max_element(ms_.begin(), ms_.end()); }
+  /// Records one event's wall time.
+  void event(double ms) { events_.push_back(ms); }
+  double median() const { return median_of(ms_); }
+  double max() const { return max_of(ms_); }
+
+  /// Prints the summary and appends the CSV row.
   void summary() const {
-    fmt::print("per step: median {:.2f} ms, max {:.2f} ms over {} steps\n", median(), max(), ms_.size());
+    fmt::print("per step ({}, {} thread{}): median {:.2f} ms, max {:.2f} ms over {} steps\n", o_.mode_name(), o_.threads,
+               o_.threads > 1 ? "s" : "", median(), max(), ms_.size());
+    if (!event_.empty() && !events_.empty())
+      fmt::print("{}: median {:.2f} ms, max {:.2f} ms over {}\n", event_, median_of(events_), max_of(events_),
+                 events_.size());
+    if (o_.csv.empty()) return;
+    const bool fresh = !std::filesystem::exists(o_.csv) || std::filesystem::file_size(o_.csv) == 0;
+    std::ofstream f(o_.csv, std::ios::app);
+    if (!f) plastifem::fail<plastifem::IoError>("cannot append to {}", o_.csv);
+    if (fresh) f << "scene,mode,threads,steps,step_median_ms,step_max_ms,event,events,event_median_ms,event_max_ms\n";
+    f << fmt::format("{},{},{},{},{:.3f},{:.3f},{},{},{:.3f},{:.3f}\n", scene_, o_.mode_name(), o_.threads, ms_.size(),
+                     median(), max(), event_.empty() ? "-" : event_, events_.size(), median_of(events_),
+                     max_of(events_));
   }
 
  private:
-  int steps_;
-  std::vector<double> ms_;
+  static double median_of(std::vector<double> v) {
+    if (v.empty()) return 0;
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  }
+  static double max_of(const std::vector<double>& v) { return v.empty() ? 0 : *std::max_element(v.begin(), v.end()); }
+
+  Options o_;
+  std::string scene_, event_;
+  std::vector<double> ms_, events_;
 };
 
 /// The boundary of a Hex8 mesh as triangles: each boundary face split into r x r quads on its

@@ -4,7 +4,7 @@
 // 0.5 s, then let go: the tube unwinds, with mass damping, for 1.5 s. Elastic, Neo-Hookean;
 // E = 500 kPa, nu = 0.45, 1060 kg/m^3 (an artery's wall, order of magnitude).
 //
-//   vessel_twist [--steps N] [--every K] [--out DIR]
+//   vessel_twist [--steps N] [--every K] [--out DIR] [--threads N] [--mode accurate|realtime] [--csv FILE]
 //
 // Writes DIR/vessel_twist.pvd (the tube: displacement, von_mises per element) and
 // DIR/vessel_twist_surface.pvd (a smooth tube surface, 96 around, embedded in the mesh and moved
@@ -67,7 +67,7 @@ TriangleSurface smooth_tube(int around, int along) {
 
 int main(int argc, char** argv) try {
   const scene::Options o = scene::parse(argc, argv, 300,
-                                        "usage: vessel_twist [--steps N] [--every K] [--out DIR]\n"
+                                        "usage: vessel_twist [options]\n"
                                         "  a vessel twisted 90 degrees at one end and released\n"
                                         "  (300 steps of 10 ms by default: twist 1 s, hold 0.5 s, unwind 1.5 s)\n");
   std::filesystem::create_directories(o.out);
@@ -81,6 +81,7 @@ int main(int argc, char** argv) try {
   // against 3% without it; docs/scenes.md.)
   st.rayleigh_mass = 5;
   st.newmark = NewmarkSettings::generalized_alpha(0.5);
+  o.apply(st);  // --threads, --mode
   Solver<Hex8, NeoHookean> s(mesh, material, st);
   s.fix(mesh.node_set("xmin"));
   const std::vector<Index> end = mesh.node_set("xmax");
@@ -124,7 +125,7 @@ int main(int argc, char** argv) try {
   };
   write();
 
-  scene::Timings timings(o.steps);
+  scene::Timings timings(o, "vessel_twist");
   Scalar peak_torque = 0, peak_angle = 0;
   for (int k = 1; k <= o.steps; ++k) {
     const StepReport r = s.step(dt);
