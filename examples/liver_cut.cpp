@@ -25,7 +25,6 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <map>
 #include <numbers>
 #include <optional>
 
@@ -76,31 +75,20 @@ int main(int argc, char** argv) try {
                                         "  (250 steps of 10 ms by default: settle 0.3 s, retract 1 s, the blade from 0.5 s "
                                         "to 2.1 s)\n");
   std::filesystem::create_directories(o.out);
-  const TriangleSurface liver = liver_surface(Vec3::Zero(), 0.1, 5);
-  const Cage<Hex8> cage = cage_around<Hex8>(liver, cell);
-  const Mesh<Hex8>& mesh = cage.mesh;
+  const scene::CagedLiver organ = scene::caged_liver(cell);
+  const TriangleSurface& liver = organ.surface;
+  const Mesh<Hex8>& mesh = organ.cage.mesh;
 
-  // The grasp: the top of the left lobe (the surface's highest vertex within 1 cm of
-  // (-0.07, 0) in plan) and the cage nodes within 15 mm of it.
-  Vec3 grasped = Vec3::Constant(-1e9);
-  for (Index v = 0; v < liver.num_vertices(); ++v) {
-    const Vec3 p = liver.vertices.col(v);
-    if ((p.head<2>() - Eigen::Vector2d(-0.07, 0)).norm() < 0.01 && p.z() > grasped.z()) grasped = p;
-  }
+  // The grasp: the top of the left lobe and the cage nodes within 15 mm of it.
+  const Vec3 grasped = scene::left_lobe_top(liver);
   const std::vector<Index> jaws = select_nodes(mesh, [&](const Vec3& p) { return (p - grasped).norm() < 0.015; });
 
   // The table: the lowest node of each column. Right of x = 0, well clear of the cut, it holds
   // the organ (friction); left of it the table only bears the organ's weight (held in z, free
   // in the plane: wet tissue on tissue), so the retracted lobe slides and the cut gapes; none
   // within 2 cm (in plan) of the grasp, where the lobe lifts off.
-  std::map<std::pair<long, long>, Index> lowest;
-  for (Index i = 0; i < mesh.num_nodes(); ++i) {
-    const Vec3 p = mesh.node(i);
-    const std::pair<long, long> column{std::lround(p.x() / cell * 2), std::lround(p.y() / cell * 2)};
-    if (auto [it, added] = lowest.try_emplace(column, i); !added && p.z() < mesh.node(it->second).z()) it->second = i;
-  }
   std::vector<Index> held, bearing;
-  for (const auto& [column, i] : lowest)
+  for (Index i : scene::lowest_of_columns(mesh, cell))
     if (mesh.node(i).x() > 0) held.push_back(i);
     else if ((mesh.node(i) - grasped).head<2>().norm() > 0.02) bearing.push_back(i);
 

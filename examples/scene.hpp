@@ -3,6 +3,7 @@
 // (--steps N, --every K, --out DIR, --threads N, --mode accurate|realtime, --csv FILE, --help),
 // a progress line, and the per-step timings they end with (and append to FILE as a bench row:
 // bench/scenes.sh); and the skin of a Hex8 mesh as a finer triangle surface to embed in it.
+#include <plastifem/embedding/cage.hpp>
 #include <plastifem/embedding/triangle_surface.hpp>
 #include <plastifem/plastifem.hpp>
 
@@ -16,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <utility>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -135,6 +137,45 @@ class Timings {
   std::string scene_, event_;
   std::vector<double> ms_, events_;
 };
+
+/// The liver scenes' organ (liver_cage, liver_cut): the library's liver-like surface, 20 cm long
+/// (liver_surface: 20,480 triangles), and its cage of `cell` Hex8 cells, each weighted by the
+/// fraction of it inside.
+struct CagedLiver {
+  plastifem::TriangleSurface surface;
+  plastifem::Cage<plastifem::Hex8> cage;
+};
+inline CagedLiver caged_liver(plastifem::Scalar cell) {
+  plastifem::TriangleSurface liver = plastifem::liver_surface(plastifem::Vec3::Zero(), 0.1, 5);
+  plastifem::Cage<plastifem::Hex8> cage = plastifem::cage_around<plastifem::Hex8>(liver, cell);
+  return {std::move(liver), std::move(cage)};
+}
+
+/// The top of the liver's left lobe, 7 cm left of its middle: the surface's highest vertex
+/// within 1 cm of (-0.07, 0) in plan.
+inline plastifem::Vec3 left_lobe_top(const plastifem::TriangleSurface& liver) {
+  plastifem::Vec3 top = plastifem::Vec3::Constant(-1e9);
+  for (plastifem::Index v = 0; v < liver.num_vertices(); ++v) {
+    const plastifem::Vec3 p = liver.vertices.col(v);
+    if ((p.head<2>() - Eigen::Vector2d(-0.07, 0)).norm() < 0.01 && p.z() > top.z()) top = p;
+  }
+  return top;
+}
+
+/// The lowest node of each vertical column of a grid of `cell` cells (where a table under the
+/// organ touches it), ordered by column.
+inline std::vector<plastifem::Index> lowest_of_columns(const plastifem::Mesh<plastifem::Hex8>& mesh,
+                                                       plastifem::Scalar cell) {
+  std::map<std::pair<long, long>, plastifem::Index> lowest;
+  for (plastifem::Index i = 0; i < mesh.num_nodes(); ++i) {
+    const plastifem::Vec3 p = mesh.node(i);
+    const std::pair<long, long> column{std::lround(p.x() / cell * 2), std::lround(p.y() / cell * 2)};
+    if (auto [it, added] = lowest.try_emplace(column, i); !added && p.z() < mesh.node(it->second).z()) it->second = i;
+  }
+  std::vector<plastifem::Index> nodes;
+  for (const auto& [column, i] : lowest) nodes.push_back(i);
+  return nodes;
+}
 
 /// The boundary of a Hex8 mesh as triangles: each boundary face split into r x r quads on its
 /// bilinear map (which is the element's own map there, so every vertex lies in the mesh), two
