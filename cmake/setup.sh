@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # plastifem set-up: installs missing Debian packages, configures, builds, then runs
 #   bash cmake/setup.sh example   the flagship example (writes VTU/PVD into build/out/)
+#   bash cmake/setup.sh scenes    the five surgical scenes, each to its end (build/out/SCENE/)
 #   bash cmake/setup.sh test      the test suite through ctest, without the cases tagged [long]
 #                                 (builds the tests only: ~20 min on 2 cores from scratch)
 #   bash cmake/setup.sh test-long the cases tagged [long] (long runs, fine meshes)
@@ -83,6 +84,13 @@ case "$what" in
     cmake --build "$build" -j "$jobs" --target cantilever
     mkdir -p "$build/out"
     "$build/examples/cantilever" --out "$build/out" ;;
+  scenes)  # the five surgical scenes, each run to its end (docs/scenes.md)
+    scenes=(fat_grasp vessel_twist liver_cage liver_cut sheet_tear)
+    cmake --build "$build" -j "$jobs" --target "${scenes[@]}"
+    for scene in "${scenes[@]}"; do
+      echo "setup: $scene"
+      "$build/examples/$scene" --out "$build/out/$scene" | tail -n 4
+    done ;;
   test)
     cmake --build "$build" -j "$jobs" --target plastifem_tests
     ctest --test-dir "$build" --output-on-failure -j "$jobs" -LE long ;;
@@ -116,5 +124,5 @@ case "$what" in
     OPENBLAS_NUM_THREADS=1 "$build/bench/study_accuracy" --csv "$build/bench/study_accuracy.csv" "${@:2}"
     install_missing python3-matplotlib
     /usr/bin/python3 docs/plot_study.py "$build/bench/study_accuracy.csv" docs/speed_accuracy.png ;;
-  *) echo "usage: bash cmake/setup.sh example|test|test-long|sanitize|fuzz|build-time|all|bench|study" >&2; exit 2 ;;
+  *) echo "usage: bash cmake/setup.sh example|scenes|test|test-long|sanitize|fuzz|build-time|all|bench|study" >&2; exit 2 ;;
 esac
