@@ -58,10 +58,8 @@ int main(int argc, char** argv) try {
   // the pull narrows it (Newton then needs tens of iterations a step); on the tray it stays
   // flat, and its cut pieces still part in the plane (a node's enriched dofs are held only in
   // the directions the node is).
-  std::vector<Index> tray;
-  for (Index n = 0; n < mesh.num_nodes(); ++n)
-    if (const Scalar y = mesh.node(n).y(); y > 1e-9 && y < height - 1e-9) tray.push_back(n);
-  s.fix(tray, DofMask{false, false, true});
+  s.fix(select_nodes(mesh, [](const Vec3& p) { return p.y() > 1e-9 && p.y() < height - 1e-9; }),
+        DofMask{false, false, true});
 
   TearingSettings tear;
   tear.strength = 1e4;
