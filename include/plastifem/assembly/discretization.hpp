@@ -143,8 +143,7 @@ class Discretization {
         threads);
     return std::isfinite(energy()) && f.allFinite();
   }
-  /// The tangent at rest (u = the rest displacement): K0, positive semi-definite, for Rayleigh
-  /// damping.
+  /// The tangent at rest (u = the rest displacement): K0, positive semi-definite.
   void assemble_rest_stiffness(BlockSymmetricMatrix& K0) const {
     Vector f(num_dofs());
     assemble(rest_displacement(), f, &K0, TangentKind::Projected, 1);

@@ -11,8 +11,9 @@
 // nonlinear f_int is evaluated only at the states themselves). Divided by (1 - alpha_f):
 //   r(u) = w_m M a(u) + f_int(u) + D v(u) - f_ext(t_{n+1}) + h_n = 0,
 //   w_m = (1 - alpha_m) / (1 - alpha_f),  h_n = (alpha_m M a_n + alpha_f g_n) / (1 - alpha_f),
-// whose Newton matrix is dr/du = (w_m c0 + alpha c1) M + K(u) + beta_R c1 K0, c1 = gamma / (beta dt),
-// for Rayleigh damping D = alpha M + beta_R K0. alpha_m = alpha_f = 0 is Newmark's method
+// whose Newton matrix is dr/du = (w_m c0 + alpha c1) M + K(u) + beta_R c1 Kd, c1 = gamma / (beta dt),
+// for Rayleigh damping D = alpha M + beta_R Kd (Kd: the projected tangent at u_n, fixed within
+// the step; solver/dynamics.hpp). alpha_m = alpha_f = 0 is Newmark's method
 // itself (w_m = 1, h_n = 0), computed with the same arithmetic.
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp), not these
 // formulas.
@@ -30,10 +31,10 @@ struct Newmark {
   bool weighted() const { return alpha_m != 0 || alpha_f != 0; }
   /// w_m = (1 - alpha_m) / (1 - alpha_f): the inertia's weight in the scaled residual.
   Scalar mass_weight() const { return (1 - alpha_m) / (1 - alpha_f); }
-  /// The Newton matrix dr/du = mass M + K(u) + rest_stiffness K0 for Rayleigh damping
-  /// D = alpha M + beta_R K0: mass = w_m c0 + alpha c1, rest_stiffness = beta_R c1.
+  /// The Newton matrix dr/du = mass M + K(u) + damping_stiffness Kd for Rayleigh damping
+  /// D = alpha M + beta_R Kd: mass = w_m c0 + alpha c1, damping_stiffness = beta_R c1.
   struct MatrixCoefficients {
-    Scalar mass, rest_stiffness;
+    Scalar mass, damping_stiffness;
   };
   MatrixCoefficients matrix(Scalar rayleigh_mass, Scalar rayleigh_stiffness) const {
     return {mass_weight() * c0() + rayleigh_mass * c1(), rayleigh_stiffness * c1()};

@@ -122,9 +122,10 @@ struct SolverSettings {
   LinearSolverSettings linear;  ///< dynamics (default: warm-started Jacobi CG, 1e-8)
   /// statics (default: the direct solver, CHOLMOD where built in, else SimplicialLDLT)
   LinearSolverSettings static_linear{LinearSolverKind::Direct, 1e-8, 2000, DirectSolver::Auto, /*verify_residual=*/true};
-  /// Rayleigh damping D = alpha M + beta K0, with K0 the stiffness at rest (of the current rest
-  /// shapes): positive semi-definite and fixed within a step. The current tangent would be
-  /// indefinite under compression (negative damping) and change within a step.
+  /// Rayleigh damping D = alpha M + beta Kd, with Kd the projected (positive semi-definite)
+  /// tangent at the step's predicted end, fixed within the step: R K0 R^T for the corotational
+  /// models, so the damping turns with the body; K0 for Linear. The exact tangent would be indefinite
+  /// under compression (negative damping) and change within a step (solver/dynamics.hpp).
   Scalar rayleigh_mass = 0, rayleigh_stiffness = 0;
   /// Threads for element loops and products: 1 by default (predictable; on small scenes and
   /// busy machines threads cost more than they give), 0: OpenMP default, N: N threads.

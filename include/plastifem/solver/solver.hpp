@@ -177,7 +177,8 @@ class Solver {
   /// Total mass, 1^T M 1 per direction.
   Scalar mass() const { return system_.M.sum() / 3; }
   /// Reaction forces at constrained dofs: f_int + M a + D v - f_ext (zero elsewhere), with the
-  /// path's v and a at the constrained dofs.
+  /// path's v and a at the constrained dofs and D's stiffness the projected tangent at the
+  /// current state.
   Vector reaction_forces() const;
   /// Internal elastic forces at the current state.
   Vector internal_force() const;
@@ -257,10 +258,10 @@ class Solver {
     }
     return {};
   }
-  /// The enriched dofs of constrained nodes, held at zero with them: a constraint on a node
-  /// holds the tissue on both sides of a cut through its support (docs/xfem.md), with either
-  /// enrichment. (Shifted enrichment held only the node's own side, which the sign of the
-  /// cut's normal chose.)
+  /// The enriched dofs of constrained nodes, held at zero in the directions the node is held
+  /// in and free in the others: a constraint holds the tissue on both sides of a cut through
+  /// its support (docs/xfem.md), with either enrichment, and a node held in z alone (a tray)
+  /// lets the cut open in x and y.
   std::vector<Index> held_enriched_dofs() const;
   CutReport cut_report_;
 
@@ -582,7 +583,10 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Vector Solver<E, Elastic, Plastic, Enrich>::reaction_forces() const {
   Vector f(num_dofs()), fe(num_dofs()), r(num_dofs()), w(num_dofs());
-  body_.assemble(current_.u, f, nullptr, TangentKind::Projected, threads());
+  // The damping's stiffness at the current state (solver/dynamics.hpp), in the same assembly.
+  BlockSymmetricMatrix Kd;
+  if (settings_.rayleigh_stiffness != 0) Kd = body_.assembler().zero_matrix();
+  body_.assemble(current_.u, f, settings_.rayleigh_stiffness != 0 ? &Kd : nullptr, TangentKind::Projected, threads());
   loads_.assemble(time(), fe);
   system_.M.multiply(current_.a, r, threads());
   r += f - fe;
@@ -591,9 +595,7 @@ Vector Solver<E, Elastic, Plastic, Enrich>::reaction_forces() const {
     r += settings_.rayleigh_mass * w;
   }
   if (settings_.rayleigh_stiffness != 0) {
-    BlockSymmetricMatrix K0 = body_.assembler().zero_matrix();
-    body_.assemble_rest_stiffness(K0);
-    K0.multiply(current_.v, w, threads());
+    Kd.multiply(current_.v, w, threads());
     r += settings_.rayleigh_stiffness * w;
   }
   for (Index i = 0; i < num_dofs(); ++i)

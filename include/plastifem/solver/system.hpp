@@ -1,7 +1,7 @@
 #pragma once
 // System: the linear-algebra side of a solver. The matrices over the current dof map (mass M,
-// tangent K, Newton matrix A, and the rest stiffness K0 when Rayleigh stiffness damping needs
-// it), which dofs are held (prescribed by a constraint, or in a row no element couples), and
+// tangent K, Newton matrix A, and the stiffness Kd of Rayleigh damping when it is used),
+// which dofs are held (prescribed by a constraint, or in a row no element couples), and
 // the linear solvers. Rebuilt when the dof map changes, and only then: pattern, matrices, the
 // Dirichlet block list, the symbolic factorisation and the CG work space.
 //
@@ -26,7 +26,9 @@ class System {
   System(const SolverSettings& s) : linear_(s.linear), static_linear_(s.static_linear) {}
 
   BlockSymmetricMatrix M, K, A;
-  BlockSymmetricMatrix K0;  ///< rest stiffness (Rayleigh stiffness damping), empty if unused
+  /// The stiffness of Rayleigh damping D = alpha M + beta Kd (solver/dynamics.hpp says at which
+  /// state), empty if unused.
+  BlockSymmetricMatrix Kd;
 
   /// New pattern (the dof map changed): every matrix is rebuilt, the linear solvers forget
   /// their analysis.
@@ -36,7 +38,7 @@ class System {
     M = asm_.zero_matrix();
     K = asm_.zero_matrix();
     A = asm_.zero_matrix();
-    K0 = BlockSymmetricMatrix();
+    Kd = BlockSymmetricMatrix();
     linear_.set_settings(s.linear);
     static_linear_.set_settings(s.static_linear);
     // Each enriched node's rows, solved together by the CG preconditioner: its standard row and
@@ -58,7 +60,6 @@ class System {
     coefficients_ = {0, 0, 0};
     build_mass(body, s.mass);
     set_constrained(body, constrained, also_held);
-    k0_epoch_ = ~std::uint64_t{0};
   }
   /// New settings (mass kind, solver settings): same pattern.
   void set_settings(const Body& body, const SolverSettings& s) {
@@ -107,7 +108,7 @@ class System {
   }
   void zero_held(Vector& v) const { blocks_.zero(v); }
 
-  /// A = cm M + K + cd K0 (same pattern: one pass over the values), then the held rows and
+  /// A = cm M + K + cd Kd (same pattern: one pass over the values), then the held rows and
   /// columns become identity.
   void form(Scalar cm, Scalar cd) {
     const Index nnz = A.num_values();
@@ -115,8 +116,8 @@ class System {
     const Scalar* m = M.values();
     const Scalar* k = K.values();
     if (cd != 0) {
-      const Scalar* k0 = K0.values();
-      for (Index i = 0; i < nnz; ++i) a[i] = cm * m[i] + k[i] + cd * k0[i];
+      const Scalar* kd = Kd.values();
+      for (Index i = 0; i < nnz; ++i) a[i] = cm * m[i] + k[i] + cd * kd[i];
     } else {
       for (Index i = 0; i < nnz; ++i) a[i] = cm * m[i] + k[i];
     }
@@ -134,7 +135,7 @@ class System {
     blocks_.apply(A);
     coefficients_ = {0, 0, 0};
   }
-  /// For a constant tangent: whether A already holds cm M + K + cd K0 (then the direct solver
+  /// For a constant tangent: whether A already holds cm M + K + cd Kd (then the direct solver
   /// reuses its factorisation); records it as holding them after the call.
   bool same_coefficients(Scalar cm, Scalar cd) {
     const std::array<Scalar, 3> c{cm, cd, 1};
@@ -152,14 +153,12 @@ class System {
   }
   void invalidate_constant_tangent() { K_constant_valid_ = false; }
 
-  /// K0 for Rayleigh stiffness damping, assembled when first needed and after rest shapes change.
-  const BlockSymmetricMatrix& rest_stiffness(const Body& body) {
-    if (K0.num_values() == 0 || k0_epoch_ != body.data().epoch()) {
-      K0 = body.assembler().zero_matrix();
-      body.assemble_rest_stiffness(K0);
-      k0_epoch_ = body.data().epoch();
-    }
-    return K0;
+  /// Kd = the projected tangent K_proj(u) of the body at u (Rayleigh damping's stiffness),
+  /// assembled into a matrix of the current pattern.
+  void assemble_damping_stiffness(const Body& body, const Vector& u, int threads) {
+    if (Kd.num_values() != K.num_values()) Kd = body.assembler().zero_matrix();
+    damping_force_.resize(u.size());
+    body.assemble(u, damping_force_, &Kd, TangentKind::Projected, threads);
   }
 
   /// The round-off level of a force evaluation on this mesh, Newton's absolute floor (ten times
@@ -230,11 +229,12 @@ class System {
   std::vector<ElementScalarMatrix<E>> element_masses_;  ///< build_mass's, of element_mass_kind_
   MassKind element_mass_kind_ = MassKind::Consistent;
   std::vector<char> held_, constrained_;
+  Vector damping_force_;  ///< assemble_damping_stiffness's force, unused
   std::vector<Index> prescribed_dofs_;
   ConstrainedBlocks blocks_;
   std::array<Scalar, 3> coefficients_{0, 0, 0};
   bool K_constant_valid_ = false;
-  std::uint64_t K_epoch_ = 0, k0_epoch_ = ~std::uint64_t{0};
+  std::uint64_t K_epoch_ = 0;
   Index roundoff_dofs_ = -1;
   Scalar roundoff_ = 0;
 };
