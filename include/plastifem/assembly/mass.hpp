@@ -38,14 +38,21 @@ ElementScalarMatrix<E> element_mass(const ElementNodes<E>& X, Scalar density, Ma
   return m;
 }
 
+/// M = the element scalar mass matrices mass_of(e) scattered into `assembler`'s pattern (M's
+/// values are overwritten).
+template <FiniteElement E, class ElementMassOf>
+void scatter_mass(const Mesh<E>& mesh, const Assembler<E>& assembler, ElementMassOf&& mass_of, BlockSymmetricMatrix& M) {
+  M = assembler.zero_matrix();
+  for (Index e = 0; e < mesh.num_elements(); ++e) assembler.add_element_scalar_matrix(e, mass_of(e), M.values());
+}
+
 /// M = the assembled mass matrix (its values are overwritten; pattern from `assembler`).
 template <FiniteElement E>
 void assemble_mass(const Mesh<E>& mesh, const Assembler<E>& assembler, Scalar density, MassKind kind,
                    BlockSymmetricMatrix& M) {
-  M = assembler.zero_matrix();
-  for (Index e = 0; e < mesh.num_elements(); ++e)
-    assembler.add_element_scalar_matrix(e, element_mass<E>(mesh.element_nodes(e), density * mesh.weight(e), kind),
-                                        M.values());
+  scatter_mass(
+      mesh, assembler,
+      [&](Index e) { return element_mass<E>(mesh.element_nodes(e), density * mesh.weight(e), kind); }, M);
 }
 
 /// Nodal loads of a body force per unit mass g (gravity), paired with the mass matrix so that

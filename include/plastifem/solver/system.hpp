@@ -218,9 +218,9 @@ class System {
               element_mass<E>(mesh.element_nodes(e), body.material().density * mesh.weight(e), kind);
         element_mass_kind_ = kind;
       }
-      M = body.assembler().zero_matrix();
-      for (Index e = 0; e < mesh.num_elements(); ++e)
-        body.assembler().add_element_scalar_matrix(e, element_masses_[static_cast<size_t>(e)], M.values());
+      scatter_mass(
+          mesh, body.assembler(),
+          [this](Index e) -> const ElementScalarMatrix<E>& { return element_masses_[static_cast<size_t>(e)]; }, M);
       if (body.has_cuts()) body.add_enriched_mass(M, kind);
     }
   }
