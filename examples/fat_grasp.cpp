@@ -25,27 +25,8 @@ using namespace plastifem;
 
 namespace {
 
-constexpr Scalar length = 0.08, width = 0.06, dome = 0.008, thickness = 0.01, lift = 0.015;
+constexpr Scalar lift = 0.015;
 constexpr Scalar t_lift = 1.0, t_release = 1.5, dt = 0.01;
-
-/// The patch the layer grows from: z = dome cos(pi x') cos(pi y') over the rectangle (x', y' in
-/// [-1/2, 1/2]), counter-clockwise from above so that the shell grows upwards.
-QuadSurface domed_patch(int nx, int ny) {
-  QuadSurface s;
-  s.nodes.resize(3, (nx + 1) * (ny + 1));
-  for (int j = 0; j <= ny; ++j)
-    for (int i = 0; i <= nx; ++i) {
-      const Scalar x = length * i / nx, y = width * j / ny;
-      s.nodes.col(j * (nx + 1) + i) = Vec3(x, y, dome * std::cos(std::numbers::pi * (x / length - 0.5)) *
-                                                       std::cos(std::numbers::pi * (y / width - 0.5)));
-    }
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      const Index a = j * (nx + 1) + i;
-      s.quads.push_back({a, a + 1, a + nx + 2, a + nx + 1});
-    }
-  return s;
-}
 
 /// The grasper's height: a smooth ramp (zero velocity at both ends) to `lift`, then held.
 Scalar grasper_height(Scalar t) {
@@ -61,7 +42,7 @@ int main(int argc, char** argv) try {
                                         "  a fat layer grasped, lifted 15 mm past yield, released: a plastic bump\n"
                                         "  (300 steps of 10 ms by default: lift 1 s, hold 0.5 s, relax 1.5 s)\n");
   std::filesystem::create_directories(o.out);
-  const Mesh<Hex8> mesh = thick_shell_hex8(domed_patch(24, 18), thickness, 3);
+  const Mesh<Hex8> mesh = scene::fat_layer();
 
   SolverSettings st;
   // Letting go of the 9 grasped nodes at once is a snap whose local modes would overshoot
@@ -78,7 +59,7 @@ int main(int argc, char** argv) try {
   s.fix(mesh.node_set("bottom"));
 
   // The grasper's jaws: the top nodes within 7 mm (in plan) of the patch's centre.
-  const Vec3 centre(length / 2, width / 2, 0);
+  const Vec3 centre(scene::fat_length / 2, scene::fat_width / 2, 0);
   std::vector<Index> jaws;
   Index tip = -1;  // the grasped point: the top node nearest the centre
   for (Index i : mesh.node_set("top")) {

@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <utility>
 #include <string>
 #include <string_view>
@@ -55,33 +56,44 @@ inline int positive_int(std::string_view option, std::string_view text) {
   return v;
 }
 
-/// Parses the scene's flags; --help prints `usage` and exits. Throws InvalidArgument on a bad
-/// flag.
-inline Options parse(int argc, char** argv, int default_steps, const char* usage) {
-  Options o;
-  o.steps = default_steps;
+/// The stepping mode called `m` (accurate, realtime), or an error naming `flag`.
+inline plastifem::NewmarkMode mode_named(std::string_view flag, const std::string& m) {
+  if (m == "accurate") return plastifem::NewmarkMode::Accurate;
+  if (m == "realtime") return plastifem::NewmarkMode::RealTime;
+  plastifem::fail<plastifem::InvalidArgument>("{} needs accurate or realtime, got '{}'", flag, m);
+}
+
+/// Calls on_option(flag, value) for each command-line flag, where value() takes the flag's
+/// value (InvalidArgument if there is none).
+template <class OnOption>
+void for_each_option(int argc, char** argv, OnOption&& on_option) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
       if (i + 1 >= argc) plastifem::fail<plastifem::InvalidArgument>("option {} needs a value", a);
       return argv[++i];
     };
+    on_option(a, value);
+  }
+}
+
+/// Parses the scene's flags; --help prints `usage` and exits. Throws InvalidArgument on a bad
+/// flag.
+inline Options parse(int argc, char** argv, int default_steps, const char* usage) {
+  Options o;
+  o.steps = default_steps;
+  for_each_option(argc, argv, [&](const std::string& a, auto&& value) {
     if (a == "--steps") o.steps = positive_int(a, value());
     else if (a == "--every") o.every = positive_int(a, value());
     else if (a == "--out") o.out = value();
     else if (a == "--threads") o.threads = positive_int(a, value());
     else if (a == "--csv") o.csv = value();
-    else if (a == "--mode") {
-      const std::string m = value();
-      if (m == "accurate") o.mode = plastifem::NewmarkMode::Accurate;
-      else if (m == "realtime") o.mode = plastifem::NewmarkMode::RealTime;
-      else plastifem::fail<plastifem::InvalidArgument>("--mode needs accurate or realtime, got '{}'", m);
-    }
+    else if (a == "--mode") o.mode = mode_named(a, value());
     else if (a == "--help" || a == "-h") {
       fmt::print("{}{}", usage, common_usage);
       std::exit(0);
     } else plastifem::fail<plastifem::InvalidArgument>("unknown option '{}' (try --help)", a);
-  }
+  });
   return o;
 }
 
@@ -160,6 +172,43 @@ inline plastifem::Vec3 left_lobe_top(const plastifem::TriangleSurface& liver) {
     if ((p.head<2>() - Eigen::Vector2d(-0.07, 0)).norm() < 0.01 && p.z() > top.z()) top = p;
   }
   return top;
+}
+
+/// Scene (a)'s fat layer (fat_grasp, the live demo): a thick shell, 1 cm thick in 3 Hex8 layers,
+/// grown upwards from a gently domed 8 x 6 cm patch of 24 x 18 cells over [0, 8 cm] x [0, 6 cm],
+/// z = 8 mm cos(pi x') cos(pi y') (x', y' in [-1/2, 1/2]); its bottom face is the node set
+/// "bottom".
+inline constexpr double fat_length = 0.08, fat_width = 0.06, fat_dome = 0.008, fat_thickness = 0.01;
+inline plastifem::Mesh<plastifem::Hex8> fat_layer() {
+  constexpr int nx = 24, ny = 18;
+  plastifem::QuadSurface s;  // counter-clockwise from above: the shell grows upwards
+  s.nodes.resize(3, (nx + 1) * (ny + 1));
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) {
+      const double x = fat_length * i / nx, y = fat_width * j / ny;
+      s.nodes.col(j * (nx + 1) + i) =
+          plastifem::Vec3(x, y, fat_dome * std::cos(std::numbers::pi * (x / fat_length - 0.5)) *
+                                    std::cos(std::numbers::pi * (y / fat_width - 0.5)));
+    }
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const plastifem::Index a = j * (nx + 1) + i;
+      s.quads.push_back({a, a + 1, a + nx + 2, a + nx + 1});
+    }
+  return plastifem::thick_shell_hex8(s, fat_thickness, 3);
+}
+
+/// Scene (d)'s sheet (sheet_tear, the live demo): 10 x 8 cm, 2 mm thick, 20 x 16 x 1 Hex8 over
+/// [0, 10 cm] x [0, 8 cm]; and its 1 cm nick into the left edge, along the middle of an element
+/// row (Tearing::start's path).
+inline constexpr double sheet_width = 0.10, sheet_height = 0.08, sheet_thickness = 0.002;
+inline plastifem::Mesh<plastifem::Hex8> tear_sheet() {
+  return plastifem::bar_mesh<plastifem::Hex8>(
+      plastifem::BoxSpec{20, 16, 1, plastifem::Vec3(sheet_width, sheet_height, sheet_thickness)});
+}
+inline std::vector<plastifem::Vec3> sheet_nick() {
+  const double y = sheet_height / 2 + 0.5 * sheet_height / 16;
+  return {plastifem::Vec3(-0.01, y, sheet_thickness / 2), plastifem::Vec3(0.01, y, sheet_thickness / 2)};
 }
 
 /// The lowest node of each vertical column of a grid of `cell` cells (where a table under the

@@ -28,7 +28,7 @@ using namespace plastifem;
 
 namespace {
 
-constexpr Scalar width = 0.10, height = 0.08, thickness = 0.002, pull_speed = 0.02, dt = 0.01;
+constexpr Scalar height = scene::sheet_height, pull_speed = 0.02, dt = 0.01;
 
 }  // namespace
 
@@ -38,7 +38,7 @@ int main(int argc, char** argv) try {
                                         "  a nicked tissue sheet pulled at 2 cm/s until it tears through\n"
                                         "  (150 steps of 10 ms by default)\n");
   std::filesystem::create_directories(o.out);
-  const Mesh<Hex8> mesh = bar_mesh<Hex8>(BoxSpec{20, 16, 1, Vec3(width, height, thickness)});
+  const Mesh<Hex8> mesh = scene::tear_sheet();
 
   // Soft tissue, E = 50 kPa, nu = 0.4, 1050 kg/m^3; strength 10 kPa, low for peritoneum (MPa) but
   // it makes the sheet tear within a centimetre of pull, as a training scene wants.
@@ -64,8 +64,7 @@ int main(int argc, char** argv) try {
   TearingSettings tear;
   tear.strength = 1e4;
   Tearing<TearingSolver> tearing(s, tear);
-  const Scalar nick_y = height / 2 + 0.5 * height / 16;  // the middle of an element row
-  tearing.start({Vec3(-0.01, nick_y, thickness / 2), Vec3(0.01, nick_y, thickness / 2)});
+  tearing.start(scene::sheet_nick());
 
   EmbeddedSurface<Hex8> skin(mesh, scene::refined_boundary(mesh, 2));
   fmt::print("sheet: {} Hex8, {} nodes on a tray; upper edge pulled at 2 cm/s, dt = 10 ms; skin of {} triangles\n",
