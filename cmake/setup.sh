@@ -2,6 +2,11 @@
 # plastifem set-up: installs missing Debian packages, configures, builds, then runs
 #   bash cmake/setup.sh example   the flagship example (writes VTU/PVD into build/out/)
 #   bash cmake/setup.sh scenes    the five surgical scenes, each to its end (build/out/SCENE/)
+#   bash cmake/setup.sh live [options]  the live demo: builds and starts its server, prints the
+#                                 address to open (examples/live/README.md; installs three.js
+#                                 with npm)
+#   bash cmake/setup.sh live-test the live demo's browser test (Debian's Chromium, headless) and
+#                                 its malformed-input test
 #   bash cmake/setup.sh test      the test suite through ctest, without the cases tagged [long]
 #                                 (builds the tests only: ~20 min on 2 cores from scratch)
 #   bash cmake/setup.sh test-long the cases tagged [long] (long runs, fine meshes)
@@ -45,7 +50,19 @@ install_missing() {
 # library, used by default here); libopenblas0-pthread: the BLAS its supernodes run on (12x
 # faster than the reference BLAS on bar5760 statics).
 packages=(g++ cmake make pkg-config libeigen3-dev libfmt-dev catch2 libsuitesparse-dev libopenblas0-pthread)
+# The live demo's server (examples/live, built in the project's own builds): HTTP and JSON.
+packages+=(libcpp-httplib-dev nlohmann-json3-dev)
 install_missing "${packages[@]}"
+
+# The live demo's page and test: node and npm (Debian's, unless a node is there already), then
+# three.js and puppeteer-core as pinned in examples/live/package-lock.json.
+live_npm() {
+  command -v npm > /dev/null || install_missing nodejs npm
+  if [ ! -f examples/live/node_modules/.package-lock.json ] ||
+     [ examples/live/package-lock.json -nt examples/live/node_modules/.package-lock.json ]; then
+    (cd examples/live && npm ci --no-audit --no-fund)
+  fi
+}
 
 # The sanitizer build: the test subset that instantiates every element (test_elements), every
 # elastic model on every element (test_point_law, test_state), every reader and writer (test_io,
@@ -78,8 +95,19 @@ if [ "$what" = sanitize ]; then
   exit 0
 fi
 
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DPLASTIFEM_BUILD_LIVE=ON
 case "$what" in
+  live)  # the live demo: bash cmake/setup.sh live [--port N] [--scene organ|fat|sheet] ...
+    cmake --build "$build" -j "$jobs" --target live
+    live_npm
+    exec "$build/examples/live/live" --out "$build/out/live" "${@:2}" ;;
+  live-test)  # the live demo in headless Chromium, and against malformed commands
+    install_missing chromium
+    cmake --build "$build" -j "$jobs" --target live
+    live_npm
+    mkdir -p "$build/out"
+    bin=$(cd "$build" && pwd)/examples/live/live shot=$(cd "$build" && pwd)/out/live_demo.png
+    (cd examples/live && LIVE_BIN="$bin" SHOT="$shot" node test/browser.mjs && LIVE_BIN="$bin" node test/malformed.mjs) ;;
   example)
     cmake --build "$build" -j "$jobs" --target cantilever
     mkdir -p "$build/out"
@@ -124,5 +152,5 @@ case "$what" in
     OPENBLAS_NUM_THREADS=1 "$build/bench/study_accuracy" --csv "$build/bench/study_accuracy.csv" "${@:2}"
     install_missing python3-matplotlib
     /usr/bin/python3 docs/plot_study.py "$build/bench/study_accuracy.csv" docs/speed_accuracy.png ;;
-  *) echo "usage: bash cmake/setup.sh example|scenes|test|test-long|sanitize|fuzz|build-time|all|bench|study" >&2; exit 2 ;;
+  *) echo "usage: bash cmake/setup.sh example|scenes|live|live-test|test|test-long|sanitize|fuzz|build-time|all|bench|study" >&2; exit 2 ;;
 esac
