@@ -5,8 +5,8 @@
 #   bash cmake/setup.sh live [options]  the live demo: builds and starts its server, prints the
 #                                 address to open (examples/live/README.md; installs three.js
 #                                 with npm)
-#   bash cmake/setup.sh live-test the live demo's browser test (Debian's Chromium, headless) and
-#                                 its malformed-input test
+#   bash cmake/setup.sh live-test the live demo's browser test (Debian's Chromium, headless), its
+#                                 scenes test and its malformed-input test
 #   bash cmake/setup.sh test      the test suite through ctest, without the cases tagged [long]
 #                                 (builds the tests only: ~20 min on 2 cores from scratch)
 #   bash cmake/setup.sh test-long the cases tagged [long] (long runs, fine meshes)
@@ -107,7 +107,8 @@ case "$what" in
     live_npm
     mkdir -p "$build/out"
     bin=$(cd "$build" && pwd)/examples/live/live shot=$(cd "$build" && pwd)/out/live_demo.png
-    (cd examples/live && LIVE_BIN="$bin" SHOT="$shot" node test/browser.mjs && LIVE_BIN="$bin" node test/malformed.mjs) ;;
+    (cd examples/live && export LIVE_BIN="$bin" &&
+       SHOT="$shot" node test/browser.mjs && node test/scenes.mjs && node test/malformed.mjs) ;;
   example)
     cmake --build "$build" -j "$jobs" --target cantilever
     mkdir -p "$build/out"
