@@ -194,6 +194,7 @@ class Simulation {
   explicit Simulation(const Options& o) : o_(o) {
     std::filesystem::create_directories(o_.out);
     load(o_.scene, o_.mode);
+    started_ = std::chrono::steady_clock::now();
     thread_ = std::thread([this] { run(); });
   }
   ~Simulation() {
@@ -228,6 +229,10 @@ class Simulation {
   json status() const {
     std::lock_guard lock(m_);
     return status_;
+  }
+  /// Whether --seconds have passed since the scene was ready.
+  bool expired() const {
+    return o_.seconds > 0 && std::chrono::steady_clock::now() - started_ > std::chrono::duration<double>(o_.seconds);
   }
 
  private:
@@ -320,6 +325,7 @@ class Simulation {
       case Command::Scene: load(c.name, scene_->mode()); break;
       case Command::Mode: scene_->set_mode(c.mode); break;
       case Command::Save: {
+        if (saves_ >= 1000) fail<InvalidArgument>("save: 1000 files written already; restart the server to save more");
         const auto path = std::filesystem::path(o_.out) / fmt::format("{}_{:04d}.vtu", scene_name_, ++saves_);
         skin.write_vtu(path);
         return json{{"ok", true}, {"file", path.string()}};
@@ -362,11 +368,6 @@ class Simulation {
           c->done.set_value(json{{"ok", false}, {"error", e.what()}});
         }
       }
-      if (o_.seconds > 0 && std::chrono::steady_clock::now() - started_ > std::chrono::duration<double>(o_.seconds)) {
-        fmt::print("live: --seconds {} reached\n", o_.seconds);
-        std::raise(SIGTERM);
-        return;
-      }
       if (failures_ >= 20) {  // paused until a reset or another scene
         std::unique_lock lock(m_);
         wake_.wait_for(lock, std::chrono::milliseconds(100));
@@ -399,7 +400,11 @@ class Simulation {
         // The state is the last good one; let go of the grasp (what drove the tissue there).
         ++failures_;
         error_ = e.what();
-        scene_->release();
+        try {
+          scene_->release();
+        } catch (const std::exception& r) {
+          error_ += fmt::format(" (and the release failed: {})", r.what());
+        }
         fmt::print("live: step failed ({}): {}\n", failures_, error_);
         if (failures_ >= 20) error_ += " (paused: reset or choose a scene)";
         publish(false, 0);
@@ -461,11 +466,18 @@ int main(int argc, char** argv) try {
     res.set_header("Cache-Control", "no-store");
   });
   server.Get("/status", [&](const httplib::Request&, httplib::Response& res) {
-    res.set_content(sim.status().dump(), "application/json");
+    res.set_content(sim.status().dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
     res.set_header("Cache-Control", "no-store");
   });
   server.Post("/command", [&](const httplib::Request& req, httplib::Response& res) {
     json reply;
+    // JSON only: a page of another site can send a text/plain POST without asking first, not
+    // an application/json one.
+    if (req.get_header_value("Content-Type").rfind("application/json", 0) != 0) {
+      res.status = 415;
+      res.set_content(R"({"ok":false,"error":"commands are application/json"})", "application/json");
+      return;
+    }
     try {
       reply = sim.submit(parse_command(req.body));
       if (!reply.value("ok", false)) res.status = 409;
@@ -480,6 +492,17 @@ int main(int argc, char** argv) try {
     res.set_content(R"({"ok":false,"error":"internal error"})", "application/json");
   });
 
+  // Requests for this server by name only: a page of another site that rebinds its own name to
+  // 127.0.0.1 sends its own Host.
+  const std::string hosts[] = {fmt::format("127.0.0.1:{}", o.port), fmt::format("localhost:{}", o.port)};
+  server.set_pre_routing_handler([&hosts](const httplib::Request& req, httplib::Response& res) {
+    const std::string host = req.get_header_value("Host");
+    if (host == hosts[0] || host == hosts[1]) return httplib::Server::HandlerResponse::Unhandled;
+    res.status = 403;
+    res.set_content(R"({"ok":false,"error":"unknown Host"})", "application/json");
+    return httplib::Server::HandlerResponse::Handled;
+  });
+
   if (!server.bind_to_port("127.0.0.1", o.port)) fail<IoError>("cannot listen on 127.0.0.1:{} (in use?)", o.port);
   server_for_signal = &server;
   std::signal(SIGINT, on_signal);
@@ -487,7 +510,20 @@ int main(int argc, char** argv) try {
   fmt::print("live: open http://127.0.0.1:{}/ (scene {}, {} mode; Ctrl-C stops)\n", o.port, o.scene,
              o.mode == NewmarkMode::RealTime ? "real-time" : "accurate");
   std::fflush(stdout);
+  // --seconds: stop once they have passed (and the server has started, or stop() is lost).
+  std::atomic<bool> done = false;
+  std::thread timer;
+  if (o.seconds > 0)
+    timer = std::thread([&] {
+      while (!done && !(server.is_running() && sim.expired())) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (!done) {
+        fmt::print("live: --seconds {} reached\n", o.seconds);
+        server.stop();
+      }
+    });
   server.listen_after_bind();
+  done = true;
+  if (timer.joinable()) timer.join();
   fmt::print("live: stopped\n");
   return 0;
 } catch (const std::exception& e) {

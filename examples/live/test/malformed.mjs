@@ -8,8 +8,8 @@ import net from 'node:net';
 import { startServer, check } from './server.mjs';
 
 const server = await startServer(['--scene', 'organ']);
-const post = async (body) => {
-  const r = await fetch(`${server.url}/command`, { method: 'POST', body });
+const post = async (body, type = 'application/json') => {
+  const r = await fetch(`${server.url}/command`, { method: 'POST', body, headers: { 'Content-Type': type } });
   let json = null;
   try { json = await r.json(); } catch { /* an error page */ }
   return { status: r.status, json };
@@ -45,6 +45,8 @@ try {
                                                  stroke: Array(5000).fill({ triangle: 1, bary: [1, 0, 0] }) }), 400],
     ['a 2 MB body', '{"cmd": "release", "pad": "' + 'x'.repeat(2 << 20) + '"}', 413],
   ];
+  const plain = await post('{"cmd": "release"}', 'text/plain');
+  check(plain.status === 415, `a command sent as text/plain is refused (415: another site's page could send it)`);
   for (const [what, body, want] of cases) {
     const r = await post(body);
     const said = r.json && r.json.error ? r.json.error : '';
@@ -65,18 +67,20 @@ try {
   check(pulls.every(b => b.byteLength > 64), `8 concurrent frame requests answered (${pulls[0].byteLength} bytes each)`);
 
   // Paths outside the page's folders, sent as written (fetch would normalise them away).
-  const rawStatus = (path) => new Promise((resolve, reject) => {
+  const rawStatus = (path, host = `127.0.0.1:${server.port}`) => new Promise((resolve, reject) => {
     let data = '';
-    const s = net.connect(server.port, '127.0.0.1', () => s.write(`GET ${path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n`));
+    const s = net.connect(server.port, '127.0.0.1',
+                          () => s.write(`GET ${path} HTTP/1.1\r\nHost: ${host}\r\nConnection: close\r\n\r\n`));
     s.on('data', d => { data += d; });
     s.on('end', () => resolve(Number(data.split(' ')[1])));
     s.on('error', reject);
   });
   check(await rawStatus('/live.js') === 200, 'the page itself is served (raw request)');
+  check(await rawStatus('/live.js', 'evil.example:80') === 403, 'a request for another Host is refused (403: DNS rebinding)');
   for (const path of ['/../live.cpp', '/three/../../live.cpp', '/%2e%2e/live.cpp', '/three/%2e%2e/%2e%2e/live.cpp',
                       '/../../../../etc/passwd']) {
     const code = await rawStatus(path);
-    check(code === 404 || code === 400, `${path} is not served (${code})`);
+    check(code === 404 || code === 400 || code === 403, `${path} is not served (${code})`);
   }
 
   // Still running, still stepping, the scene as it was.

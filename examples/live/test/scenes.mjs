@@ -8,7 +8,8 @@ import { startServer, check } from './server.mjs';
 const server = await startServer(['--scene', 'organ']);
 const sleep = ms => new Promise(r => setTimeout(r, ms));
 const command = async (c) => {
-  const r = await fetch(`${server.url}/command`, { method: 'POST', body: JSON.stringify(c) });
+  const r = await fetch(`${server.url}/command`, { method: 'POST', body: JSON.stringify(c),
+                                                   headers: { 'Content-Type': 'application/json' } });
   return r.json();
 };
 const status = async () => (await fetch(`${server.url}/status`)).json();

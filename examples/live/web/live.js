@@ -58,17 +58,25 @@ function resize() {
 window.addEventListener('resize', resize);
 resize();
 
-async function command(body) {
-  try {
-    const r = await fetch('/command', { method: 'POST', body: JSON.stringify(body) });
-    const reply = await r.json();
-    live.lastReply = reply;
-    if (!reply.ok) showError(reply.error);
-    return reply;
-  } catch (e) {
-    showError(`server unreachable: ${e.message}`);
-    return { ok: false, error: e.message };
-  }
+// Commands go out one at a time, in order: on parallel connections the server could apply a
+// release before its grasp, or a move before the grasp it drags.
+let commandChain = Promise.resolve();
+function command(body) {
+  const send = async () => {
+    try {
+      const r = await fetch('/command', { method: 'POST', headers: { 'Content-Type': 'application/json' },
+                                           body: JSON.stringify(body) });
+      const reply = await r.json();
+      live.lastReply = reply;
+      if (!reply.ok) showError(reply.error);
+      return reply;
+    } catch (e) {
+      showError(`server unreachable: ${e.message}`);
+      return { ok: false, error: e.message };
+    }
+  };
+  commandChain = commandChain.then(send);
+  return commandChain;
 }
 function showError(text) {
   errorBox.textContent = text || '';
@@ -109,7 +117,11 @@ async function pullFrame() {
     if (head[0] !== 0x564c4650) throw new Error('not a frame');
     const st = new Float32Array(buf, 16, 12);
     const nv = head[2];
-    if (head[1] !== live.topology) await loadTopology();
+    if (head[1] !== live.topology) {
+      await loadTopology();
+      // The triangles may be newer than this frame's vertices: draw from the next frame.
+      if (live.topology !== head[1]) return;
+    }
     const data = new Float32Array(buf, 64, 6 * nv);
     let pos = geometry.getAttribute('position');
     if (!pos || pos.count !== nv) {
@@ -125,13 +137,14 @@ async function pullFrame() {
     if (!fitted) fitCamera();
     live.positions = pos.array;
     live.vertices = nv;
+    const fresh = head[3] !== live.frameNumber;
     live.frameNumber = head[3];
     live.force = [st[4], st[5], st[6]];
     live.grasping = st[7] > 0;
     live.frames++;
     framesSince++;
     updateStatus(st);
-    recordForce(st[0], Math.hypot(st[4], st[5], st[6]), live.grasping);
+    if (fresh) recordForce(st[0], Math.hypot(st[4], st[5], st[6]), live.grasping);
   } catch (e) {
     statusBox.textContent = `waiting for the server (${e.message})`;
   } finally {
@@ -139,8 +152,10 @@ async function pullFrame() {
   }
 }
 
-let statusJson = null;
+let statusJson = null, statusInFlight = false;
 async function pullStatus() {
+  if (statusInFlight) return;
+  statusInFlight = true;
   try {
     statusJson = await (await fetch('/status', { cache: 'no-store' })).json();
     live.status = statusJson;
@@ -153,7 +168,9 @@ async function pullStatus() {
     }
     document.getElementById('mode').textContent = statusJson.mode === 'realtime' ? 'real time' : 'accurate';
     if (statusJson.error) showError(`step failed, last good state shown: ${statusJson.error}`);
-  } catch (e) { /* the frame loop reports it */ }
+  } catch (e) { /* the frame loop reports it */ } finally {
+    statusInFlight = false;
+  }
 }
 setInterval(pullStatus, 250);
 
@@ -176,6 +193,8 @@ function updateStatus(st) {
 // --- the force plot -----------------------------------------------------------------------
 const forceHistory = [];
 function recordForce(t, f, grasping) {
+  // A reset (here or from another page) starts the time again.
+  if (forceHistory.length > 0 && t < forceHistory[forceHistory.length - 1][0]) forceHistory.length = 0;
   forceHistory.push([t, grasping ? f : NaN]);
   while (forceHistory.length > 0 && forceHistory[0][0] < t - 10) forceHistory.shift();
   drawPlot();
@@ -187,8 +206,9 @@ function drawPlot() {
   g.fillStyle = '#e8e8e8';
   g.font = '12px system-ui, sans-serif';
   g.fillText('grasper force (N), last 10 s', left, 14);
-  const values = forceHistory.map(p => p[1]).filter(v => Number.isFinite(v));
-  const fmax = Math.max(0.1, ...values) * 1.1;
+  let fmax = 0.1;
+  for (const [, f] of forceHistory) if (Number.isFinite(f) && f > fmax) fmax = f;
+  fmax *= 1.1;
   g.strokeStyle = '#667';
   g.beginPath(); g.moveTo(left, top); g.lineTo(left, h - bottom); g.lineTo(w - 8, h - bottom); g.stroke();
   g.fillText(fmax.toPrecision(2), 4, top + 8);
@@ -214,7 +234,7 @@ function drawPlot() {
 // --- the mouse: grasp and drag, or draw a cut ---------------------------------------------
 const raycaster = new THREE.Raycaster();
 const pointer = new THREE.Vector2();
-let cutMode = false, dragging = false, stroke = null;
+let cutMode = false, dragging = false, grasped = false, stroke = null;
 const dragPlane = new THREE.Plane();
 let moveInFlight = false, pendingTarget = null;
 
@@ -235,11 +255,11 @@ function barycentric(hit) {
   // Clamp round-off outside the triangle, renormalise.
   const v = [Math.max(0, b.x), Math.max(0, b.y), Math.max(0, b.z)];
   const s = v[0] + v[1] + v[2];
-  return v.map(x => x / s);
+  return s > 0 ? v.map(x => x / s) : null;  // a degenerate triangle: no point
 }
 
 async function sendMove() {
-  if (moveInFlight || !pendingTarget) return;
+  if (moveInFlight || !pendingTarget || !grasped) return;
   moveInFlight = true;
   const t = pendingTarget;
   pendingTarget = null;
@@ -248,14 +268,21 @@ async function sendMove() {
   if (pendingTarget) sendMove();
 }
 
+function addHit(hit) {
+  const bary = hit ? barycentric(hit) : null;
+  if (bary) stroke.hits.push({ triangle: hit.faceIndex, bary });
+}
+
 renderer.domElement.addEventListener('pointerdown', async (event) => {
   if (event.button !== 0) return;
   const hit = pick(event);
   if (cutMode) {
     controls.enabled = false;
     // A stroke that starts (or ends) off the tissue cuts through its edge there.
-    stroke = { screen: [[event.clientX, event.clientY]], hits: [], openStart: !hit, lastHit: !!hit };
-    if (hit) stroke.hits.push({ triangle: hit.faceIndex, bary: barycentric(hit) });
+    // The triangles the stroke is drawn on: a cut or tear meanwhile renumbers them.
+    stroke = { screen: [[event.clientX, event.clientY]], hits: [], openStart: !hit, lastHit: !!hit,
+               topology: live.topology };
+    addHit(hit);
     return;
   }
   if (!hit) return;  // orbit
@@ -265,14 +292,17 @@ renderer.domElement.addEventListener('pointerdown', async (event) => {
   grasper.position.copy(hit.point);
   grasper.visible = true;
   const reply = await command({ cmd: 'grasp', point: [hit.point.x, hit.point.y, hit.point.z] });
-  if (!reply.ok) { dragging = false; grasper.visible = false; controls.enabled = true; }
+  if (!reply.ok) { dragging = false; grasper.visible = false; controls.enabled = true; return; }
+  if (!dragging) return;  // the button went up meanwhile: the release follows the grasp
+  grasped = true;
+  sendMove();  // where the mouse went meanwhile
 });
 
 renderer.domElement.addEventListener('pointermove', (event) => {
   if (stroke) {
     stroke.screen.push([event.clientX, event.clientY]);
     const hit = pick(event);
-    if (hit) stroke.hits.push({ triangle: hit.faceIndex, bary: barycentric(hit) });
+    addHit(hit);
     stroke.lastHit = !!hit;
     drawStroke();
     return;
@@ -294,17 +324,23 @@ async function endPointer() {
     stroke = null;
     controls.enabled = true;
     setTimeout(() => overlay.getContext('2d').clearRect(0, 0, overlay.width, overlay.height), 400);
+    if (s.topology !== live.topology) {
+      showError('the surface changed while the stroke was drawn: draw it again');
+      return;
+    }
     const dir = camera.getWorldDirection(new THREE.Vector3());
-    const reply = await command({ cmd: 'cut', stroke: s.hits, direction: [dir.x, dir.y, dir.z], topology: live.topology,
+    const reply = await command({ cmd: 'cut', stroke: s.hits, direction: [dir.x, dir.y, dir.z], topology: s.topology,
                                   open_start: s.openStart, open_end: !s.lastHit });
     if (reply.ok) showError('');
     return;
   }
   if (!dragging) return;
   dragging = false;
+  grasped = false;
+  pendingTarget = null;
   grasper.visible = false;
   controls.enabled = true;
-  await command({ cmd: 'release' });
+  await command({ cmd: 'release' });  // after the grasp, in order
 }
 renderer.domElement.addEventListener('pointerup', endPointer);
 renderer.domElement.addEventListener('pointerleave', endPointer);
