@@ -205,8 +205,8 @@ TEST_CASE("Rayleigh damping on one mode: the scalar Newmark recurrence, and the 
 
 TEST_CASE("stiffness damping is objective: a rotated body moves as the rotated history - a spin is not damped",
           "[dynamics][damping]") {
-  // Rayleigh's stiffness part damps with the projected tangent at the step's start (R K0 R^T for
-  // the corotational models), and M, the forces and that tangent all turn with the body, so the
+  // Rayleigh's stiffness part damps with the projected tangent at the step's predicted end (R K0
+  // R^T for the corotational models), and M, the forces and that tangent all turn with the body, so the
   // whole discrete step commutes with a rigid rotation Q: the body released from Q (X + u0) moves
   // as Q x(t) of the body released from X + u0. With K0 at rest instead, the rotated body was
   // damped in the wrong directions (its deformation decayed differently) and a spin lost energy.

@@ -168,16 +168,17 @@ class Dynamics {
   }
 
   /// The system's Kd = K_proj(u) (file comment). A constant tangent's is K0 of the current rest
-  /// shapes at every u: assembled once per rest-shape epoch.
-  void damping_stiffness_at(Parts& p, const Vector& u) {
-    if (p.settings.rayleigh_stiffness == 0) return;
+  /// shapes at every u: assembled once per rest-shape epoch. false if some element cannot be
+  /// evaluated at u (inverted, for an energy with ln J).
+  bool damping_stiffness_at(Parts& p, const Vector& u) {
+    if (p.settings.rayleigh_stiffness == 0) return true;
     const auto epoch = p.body.data().epoch();
     if (constant_tangent && damping_valid_ && damping_epoch_ == epoch &&
         p.system.Kd.num_values() == p.system.K.num_values())
-      return;
-    p.system.assemble_damping_stiffness(p.body, u, p.threads);
-    damping_valid_ = true;
+      return true;
+    damping_valid_ = p.system.assemble_damping_stiffness(p.body, u, p.threads);
     damping_epoch_ = epoch;
+    return damping_valid_;
   }
 
   /// " (element e is inverted ...)" for a non-finite force at u, or "" if none is found.
@@ -197,15 +198,13 @@ class Dynamics {
     return [&mesh = p.body.mesh()](Index i) { return Vec3(mesh.node(i)); };
   }
 
-  /// The step's fixed data: a_n (the state's, or from equilibrium), f_ext(t_{n+1}), and the
-  /// prescribed path's u, v, a at t_{n+1}.
-  void start_step(Parts& p, const StateT& n, Scalar dt) {
+  /// The step's fixed data: a_n (the state's, or from equilibrium), f_ext(t_{n+1}), the
+  /// prescribed path's u, v, a at t_{n+1}, and Rayleigh's Kd: at the predicted end of the step
+  /// (the prescribed dofs at their new values), or at u_n for a step that starts from there (the
+  /// accurate retry at huge steps) or whose predictor inverts an element.
+  void start_step(Parts& p, const StateT& n, Scalar dt, bool predictor = true) {
     if (n.acceleration_known) a_start_ = n.a;
     else initial_acceleration(p, n, a_start_);
-    if (p.settings.rayleigh_stiffness != 0) {  // Kd at the predicted end of the step
-      scheme(p.settings, dt).predictor(n.u, n.v, a_start_, u_);
-      damping_stiffness_at(p, u_);
-    }
     const Scalar t1 = n.t + dt;
     p.loads.assemble(t1, f_ext_);
     if (!f_ext_.allFinite()) fail<SolverError>("external loads at t = {} are not finite; the state is unchanged", t1);
@@ -215,6 +214,14 @@ class Dynamics {
     // Every set writes its dofs (a fixed one zeros: its dofs may have been moved by a set
     // released since).
     path_jumps_ = p.constraints.empty() ? 0 : p.constraints.evaluate(t1, dt, position_of(p), path_.u, &path_.v, &path_.a);
+    if (p.settings.rayleigh_stiffness != 0) {
+      if (predictor) scheme(p.settings, dt).predictor(n.u, n.v, a_start_, u_);
+      else u_ = n.u;
+      set_prescribed(p, u_);
+      if (!damping_stiffness_at(p, u_) && !damping_stiffness_at(p, n.u))
+        fail<SolverError>("Newmark step at t = {}: the current state cannot be evaluated{}; the state is unchanged", t1,
+                          where_invalid(p, n.u));
+    }
   }
   /// Generalized-alpha: h_n = (alpha_m M a_n + alpha_f (f_int(u_n) + D v_n - f_ext(t_n))) / (1 - alpha_f)
   /// (solver/newmark.hpp), the step's fixed share of the balance; f_int_n = f_int(u_n). Uses rhs_
@@ -349,7 +356,7 @@ class Dynamics {
     const auto& st = p.settings;
     const auto t0 = std::chrono::steady_clock::now();
     const Newmark nm = scheme(st, dt);
-    start_step(p, n, dt);
+    start_step(p, n, dt, predictor);
     if (nm.weighted()) {
       if (!evaluate(p, n.u, f_int_, false, TangentKind::Projected))
         fail<SolverError>("Newmark step at t = {}: the current state cannot be evaluated{}; the state is unchanged",

@@ -12,9 +12,9 @@
 //   r(u) = w_m M a(u) + f_int(u) + D v(u) - f_ext(t_{n+1}) + h_n = 0,
 //   w_m = (1 - alpha_m) / (1 - alpha_f),  h_n = (alpha_m M a_n + alpha_f g_n) / (1 - alpha_f),
 // whose Newton matrix is dr/du = (w_m c0 + alpha c1) M + K(u) + beta_R c1 Kd, c1 = gamma / (beta dt),
-// for Rayleigh damping D = alpha M + beta_R Kd (Kd: the projected tangent at u_n, fixed within
-// the step; solver/dynamics.hpp). alpha_m = alpha_f = 0 is Newmark's method
-// itself (w_m = 1, h_n = 0), computed with the same arithmetic.
+// for Rayleigh damping D = alpha M + beta_R Kd (Kd: the projected tangent at the step's
+// predicted end, fixed within the step; solver/dynamics.hpp). alpha_m = alpha_f = 0 is
+// Newmark's method itself (w_m = 1, h_n = 0), computed with the same arithmetic.
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp), not these
 // formulas.
 #include <plastifem/assembly/block_matrix.hpp>

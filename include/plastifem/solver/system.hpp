@@ -155,10 +155,11 @@ class System {
 
   /// Kd = the projected tangent K_proj(u) of the body at u (Rayleigh damping's stiffness),
   /// assembled into a matrix of the current pattern.
-  void assemble_damping_stiffness(const Body& body, const Vector& u, int threads) {
+  /// false if some element cannot be evaluated at u (Kd is then incomplete).
+  bool assemble_damping_stiffness(const Body& body, const Vector& u, int threads) {
     if (Kd.num_values() != K.num_values()) Kd = body.assembler().zero_matrix();
     damping_force_.resize(u.size());
-    body.assemble(u, damping_force_, &Kd, TangentKind::Projected, threads);
+    return body.assemble(u, damping_force_, &Kd, TangentKind::Projected, threads);
   }
 
   /// The round-off level of a force evaluation on this mesh, Newton's absolute floor (ten times
