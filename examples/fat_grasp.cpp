@@ -44,12 +44,10 @@ int main(int argc, char** argv) try {
   std::filesystem::create_directories(o.out);
   const Mesh<Hex8> mesh = scene::fat_layer();
 
-  SolverSettings st;
   // Letting go of the 9 grasped nodes at once is a snap whose local modes would overshoot
   // through the layer (the trapezoidal rule keeps their energy) and stall Newton:
   // generalized-alpha's numerical damping takes them, mass damping settles the rest.
-  st.rayleigh_mass = 5;
-  st.newmark = NewmarkSettings::generalized_alpha(0.5);
+  SolverSettings st = scene::tissue_settings();
   o.apply(st);  // --threads, --mode
   PlasticParams p;
   p.yield_stress = 400;  // Pa: the lift's stretch reaches a few kPa near the grasp, the rest stays elastic

@@ -64,11 +64,8 @@ int main(int argc, char** argv) try {
   for (Index i : scene::lowest_of_columns(mesh, cell))
     if ((mesh.node(i) - grasped).head<2>().norm() > 0.02) table.push_back(i);
 
-  SolverSettings st;
-  st.rayleigh_mass = 5;  // settles the organ's sway after the release
-  // The release's snap: generalized-alpha's numerical damping. (Not stiffness-proportional
-  // damping, which made the vessel scene's twist lag far beyond its size: docs/scenes.md.)
-  st.newmark = NewmarkSettings::generalized_alpha(0.5);
+  // Mass damping settles the organ's sway after the release, generalized-alpha its snap.
+  SolverSettings st = scene::tissue_settings();
   o.apply(st);  // --threads, --mode
   Solver<Hex8, Corotational> s(mesh, Material{5e3, 0.45, 1070}, st);
   s.fix(table);

@@ -93,9 +93,7 @@ int main(int argc, char** argv) try {
     else if ((mesh.node(i) - grasped).head<2>().norm() > 0.02) bearing.push_back(i);
 
   using CuttingSolver = Solver<Hex8, Corotational, NoPlasticity, ShiftedHeaviside>;
-  SolverSettings st;
-  st.rayleigh_mass = 5;                                  // the organ's sway settles
-  st.newmark = NewmarkSettings::generalized_alpha(0.5);  // the snap of each cut cell (sheet_tear)
+  SolverSettings st = scene::tissue_settings();  // the sway settles; each cut cell's snap is damped
   o.apply(st);  // --threads, --mode
   CuttingSolver s(mesh, Material{5e3, 0.45, 1070}, st);
   s.fix(held);

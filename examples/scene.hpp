@@ -41,6 +41,19 @@ struct Options {
   const char* mode_name() const { return mode == plastifem::NewmarkMode::RealTime ? "realtime" : "accurate"; }
 };
 
+/// The damping every tissue scene (and the live demo) runs with: tissue in fluid, mass damping
+/// (alpha = 5 /s) settles the motion once let go; a release, a cut or a tear lets go of stress at
+/// once, a snap that rings in the mesh's highest modes, which the trapezoidal rule keeps and
+/// generalized-alpha (rho_inf = 0.5) damps. Not stiffness-proportional damping: even 2 ms of it
+/// made the vessel's twist lag, its torque twice the static one at 20 degrees (docs/scenes.md).
+/// Set the threads and the mode afterwards (Options::apply).
+inline plastifem::SolverSettings tissue_settings() {
+  plastifem::SolverSettings st;
+  st.rayleigh_mass = 5;
+  st.newmark = plastifem::NewmarkSettings::generalized_alpha(0.5);
+  return st;
+}
+
 /// The flags every scene takes, for its usage text.
 inline constexpr const char* common_usage =
     "  --steps N   time steps      --every K   a PVD frame every K steps   --out DIR   output folder\n"

@@ -43,13 +43,11 @@ int main(int argc, char** argv) try {
   // Soft tissue, E = 50 kPa, nu = 0.4, 1050 kg/m^3; strength 10 kPa, low for peritoneum (MPa) but
   // it makes the sheet tear within a centimetre of pull, as a training scene wants.
   using TearingSolver = Solver<Hex8, Corotational, NoPlasticity, ShiftedHeaviside>;
-  SolverSettings settings;
-  settings.rayleigh_mass = 5;  // tissue in fluid: the torn pieces settle
-  // Each element the crack cuts lets go of its stress at once: a snap that rings in the mesh's
-  // highest modes, which the trapezoidal rule keeps (they held the kinetic energy at 1e-4 J after
-  // the tear and Newton at 10-40 iterations a step). Generalized-alpha's numerical damping takes
-  // them.
-  settings.newmark = NewmarkSettings::generalized_alpha(0.5);
+  // Mass damping: the torn pieces settle. Each element the crack cuts lets go of its stress at
+  // once: a snap that rings in the mesh's highest modes, which the trapezoidal rule keeps (they
+  // held the kinetic energy at 1e-4 J after the tear and Newton at 10-40 iterations a step).
+  // Generalized-alpha's numerical damping takes them.
+  SolverSettings settings = scene::tissue_settings();
   o.apply(settings);  // --threads, --mode
   TearingSolver s(mesh, Material{5e4, 0.4, 1050}, settings);
   s.fix(mesh.node_set("ymin"));

@@ -74,13 +74,10 @@ int main(int argc, char** argv) try {
   const Mesh<Hex8> mesh = tube_hex8(r_in, r_out, length, n_circ, 20, 1);
   const Material material{5e5, 0.45, 1060};
 
-  SolverSettings st;
   // Letting go releases the twist at once: generalized-alpha's numerical damping takes the
-  // snap's high modes, mass damping settles the rest. (Stiffness-proportional damping, even
-  // 2 ms of it, made the twist lag: the torque came out twice the static one at 20 degrees,
-  // against 3% without it; docs/scenes.md.)
-  st.rayleigh_mass = 5;
-  st.newmark = NewmarkSettings::generalized_alpha(0.5);
+  // snap's high modes, mass damping settles the rest (scene::tissue_settings says why not
+  // stiffness-proportional damping).
+  SolverSettings st = scene::tissue_settings();
   o.apply(st);  // --threads, --mode
   Solver<Hex8, NeoHookean> s(mesh, material, st);
   s.fix(mesh.node_set("xmin"));

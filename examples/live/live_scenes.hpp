@@ -187,11 +187,7 @@ using CuttingSolver = Solver<Hex8, Corotational, NoPlasticity, ShiftedHeaviside>
 using PlasticSolver = Solver<Hex8, Corotational, VertexBlended>;
 
 inline SolverSettings live_settings(NewmarkMode mode, int threads) {
-  SolverSettings st;
-  st.rayleigh_mass = 5;  // tissue in fluid: motion settles once let go
-  // A release or a cut lets go of stress at once; generalized-alpha's numerical damping takes
-  // the mesh's highest modes the trapezoidal rule would keep ringing (docs/scenes.md).
-  st.newmark = NewmarkSettings::generalized_alpha(0.5);
+  SolverSettings st = scene::tissue_settings();  // as the scenes: settles once let go, snaps damped
   st.newmark.mode = mode;
   st.threads = threads;
   return st;
