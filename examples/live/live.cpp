@@ -243,8 +243,8 @@ class Simulation {
     failures_ = 0;
     error_.clear();
     ms_.clear();
-    wall_start_ = std::chrono::steady_clock::now();
-    sim_start_ = scene_->time();
+    wall_start_ = pace_wall_start_ = std::chrono::steady_clock::now();
+    sim_start_ = pace_sim_start_ = scene_->time();
     fmt::print("live: scene '{}' ready in {:.0f} ms: {} dofs, {} surface triangles\n", name,
                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(),
                scene_->num_dofs(), scene_->surface().surface().num_triangles());
@@ -374,9 +374,15 @@ class Simulation {
         continue;
       }
       // Real time: no further ahead of the wall clock than one step.
-      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start_).count();
-      const double ahead = (scene_->time() - sim_start_) - wall;
-      if (ahead > dt) {
+      const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - pace_wall_start_).count();
+      const double ahead = (scene_->time() - pace_sim_start_) - wall;
+      if (ahead < -catch_up_limit) {
+        // Behind after slow steps (accurate mode, a slow scene): keep the pace from now on
+        // instead of running flat out later to make the lost time up. (The status's share of the
+        // wall clock still counts from the scene's start.)
+        pace_wall_start_ = std::chrono::steady_clock::now();
+        pace_sim_start_ = scene_->time();
+      } else if (ahead > dt) {
         std::unique_lock lock(m_);
         wake_.wait_for(lock, std::chrono::duration<double>(ahead - dt));
         continue;
@@ -409,8 +415,8 @@ class Simulation {
         if (failures_ >= 20) error_ += " (paused: reset or choose a scene)";
         publish(false, 0);
         // Do not run away from the wall clock while failing.
-        wall_start_ = std::chrono::steady_clock::now();
-        sim_start_ = scene_->time();
+        wall_start_ = pace_wall_start_ = std::chrono::steady_clock::now();
+        sim_start_ = pace_sim_start_ = scene_->time();
       }
     }
   }
@@ -421,8 +427,11 @@ class Simulation {
   int failures_ = 0, saves_ = 0;
   std::vector<double> ms_;
   double surface_ms_ = 0;
-  std::chrono::steady_clock::time_point wall_start_, started_ = std::chrono::steady_clock::now();
-  Scalar sim_start_ = 0;
+  // The status's share of the wall clock counts from the scene's start (wall_start_, sim_start_);
+  // the real-time pace from its last rebase (pace_*), at most catch_up_limit behind.
+  std::chrono::steady_clock::time_point wall_start_, pace_wall_start_, started_ = std::chrono::steady_clock::now();
+  Scalar sim_start_ = 0, pace_sim_start_ = 0;
+  static constexpr double catch_up_limit = 0.25;  // s
   std::uint32_t topology_version_ = 0;
   std::uint64_t frame_number_ = 0;
 
