@@ -11,7 +11,7 @@
 int main() try {
   using namespace plastifem;
   // --- as in the README ---
-  auto mesh = bar_mesh<Hex8>(20, 6, 6);                 // SCENES.md bar720; or read_gmsh<Tet10>("organ.msh")
+  auto mesh = bar_mesh<Hex8>(20, 6, 6);                 // bar720 (docs/scenes.md); or io::read_gmsh<Tet10>("organ.msh")
   Solver<Hex8, Corotational> solver(mesh, Material{3000, 0.45, 1.0});   // E, nu, density (validated)
   solver.fix(mesh.node_set("xmin"));                   // clamp x = 0
   solver.add_gravity(Vec3(0, 0, -9.81));               // nodal loads paired with the mass matrix
