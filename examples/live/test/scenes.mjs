@@ -1,5 +1,5 @@
 // Every scene of the live demo through the server's commands, in both modes: the fat layer keeps
-// a bump after a pull past yield, the sheet tears from its nick when pulled, the organ is
+// a bump after a pull past yield and can be cut, the sheet tears from its nick when pulled, the organ is
 // grasped with a non-zero force in accurate mode too; a reset brings a scene back to its start;
 // after a stall real time keeps its pace.
 //
@@ -26,6 +26,7 @@ try {
   check((await command({ cmd: 'scene', name: 'fat' })).ok, 'scene fat');
   await sleep(500);
   const rest = await positions();
+  const reset0Dofs = (await status()).dofs;
   check((await command({ cmd: 'grasp', point: [0.04, 0.03, 0.018] })).ok, 'fat: grasped its top');
   check((await command({ cmd: 'move', target: [0.04, 0.03, 0.033] })).ok, 'fat: the grasper moves up 15 mm');
   await sleep(2000);
@@ -35,6 +36,28 @@ try {
   await sleep(3000);
   const bump = largestChange(await positions(), rest);
   check(bump > 1e-3, `fat: a permanent bump of ${(1e3 * bump).toFixed(1)} mm after the release (plastic flow)`);
+
+  // ... and cut across its top, seen from above: the plastic layer opens (plasticity and X-FEM
+  // in one Solver) and steps on.
+  const topo = new Uint32Array(await (await fetch(`${server.url}/topology`)).arrayBuffer());
+  const [version, ntri] = [topo[0], topo[1]];
+  const x = await positions();
+  const top = (px, py) => {  // the highest triangle whose centre lies within 3 mm of (px, py)
+    let best = -1, bestZ = -Infinity;
+    for (let t = 0; t < ntri; ++t) {
+      const c = [0, 1, 2].map(d => (x[3 * topo[2 + 3 * t] + d] + x[3 * topo[3 + 3 * t] + d] + x[3 * topo[4 + 3 * t] + d]) / 3);
+      if (Math.hypot(c[0] - px, c[1] - py) < 0.003 && c[2] > bestZ) [best, bestZ] = [t, c[2]];
+    }
+    return best;
+  };
+  const stroke = [top(0.02, 0.03), top(0.04, 0.03), top(0.06, 0.03)].map(t => ({ triangle: t, bary: [1 / 3, 1 / 3, 1 / 3] }));
+  check(stroke.every(p => p.triangle >= 0), 'fat: a stroke across its top');
+  const cut = await command({ cmd: 'cut', stroke, direction: [0, 0, -1], topology: version });
+  check(cut.ok, `fat: cut (${cut.error || 'ok'})`);
+  await sleep(1500);
+  const afterCut = await status();
+  check(afterCut.triangles > ntri && afterCut.dofs > reset0Dofs && !afterCut.error && afterCut.time > lifted.time,
+        `fat: the cut opened the surface (${ntri} -> ${afterCut.triangles} triangles, ${afterCut.dofs} dofs) and it steps on`);
 
   // The sheet: pull the middle of its upper edge away from the fixed lower edge: it tears.
   check((await command({ cmd: 'scene', name: 'sheet' })).ok, 'scene sheet');
