@@ -159,7 +159,8 @@ Options parse_options(int argc, char** argv) {
   Options o;
   scene::for_each_option(argc, argv, [&](const std::string& a, auto&& value) {
     if (a == "--port") {
-      o.port = scene::positive_int(a, value());
+      const std::string v = value();
+      o.port = v == "0" ? 0 : scene::positive_int(a, v);  // 0: any free port (the tests' choice)
       if (o.port > 65535) fail<InvalidArgument>("--port must be at most 65535");
     } else if (a == "--threads") o.threads = scene::positive_int(a, value());
     else if (a == "--scene") o.scene = value();
@@ -177,7 +178,7 @@ Options parse_options(int argc, char** argv) {
     else if (a == "--mode") o.mode = scene::mode_named(a, value());
     else if (a == "--help" || a == "-h") {
       fmt::print(
-          "usage: live [--port N (8765)] [--scene organ|fat|sheet] [--mode realtime|accurate] [--threads N (1)]\n"
+          "usage: live [--port N (8765; 0: any free one)] [--scene organ|fat|sheet] [--mode realtime|accurate] [--threads N (1)]\n"
           "            [--dt S (0.02)] [--out DIR (out/live)] [--web DIR] [--three DIR] [--seconds S]\n"
           "  serves the live demo on http://127.0.0.1:N/\n");
       std::exit(0);
@@ -501,9 +502,17 @@ int main(int argc, char** argv) try {
     res.set_content(R"({"ok":false,"error":"internal error"})", "application/json");
   });
 
+  // --port 0: the system picks a free port, printed below (no race between choosing and binding).
+  int port = o.port;
+  if (port == 0) {
+    port = server.bind_to_any_port("127.0.0.1");
+    if (port <= 0) fail<IoError>("cannot listen on any port of 127.0.0.1");
+  } else if (!server.bind_to_port("127.0.0.1", port)) {
+    fail<IoError>("cannot listen on 127.0.0.1:{} (in use?)", port);
+  }
   // Requests for this server by name only: a page of another site that rebinds its own name to
   // 127.0.0.1 sends its own Host.
-  const std::string hosts[] = {fmt::format("127.0.0.1:{}", o.port), fmt::format("localhost:{}", o.port)};
+  const std::string hosts[] = {fmt::format("127.0.0.1:{}", port), fmt::format("localhost:{}", port)};
   server.set_pre_routing_handler([&hosts](const httplib::Request& req, httplib::Response& res) {
     const std::string host = req.get_header_value("Host");
     if (host == hosts[0] || host == hosts[1]) return httplib::Server::HandlerResponse::Unhandled;
@@ -512,11 +521,10 @@ int main(int argc, char** argv) try {
     return httplib::Server::HandlerResponse::Handled;
   });
 
-  if (!server.bind_to_port("127.0.0.1", o.port)) fail<IoError>("cannot listen on 127.0.0.1:{} (in use?)", o.port);
   server_for_signal = &server;
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  fmt::print("live: open http://127.0.0.1:{}/ (scene {}, {} mode; Ctrl-C stops)\n", o.port, o.scene,
+  fmt::print("live: open http://127.0.0.1:{}/ (scene {}, {} mode; Ctrl-C stops)\n", port, o.scene,
              o.mode == NewmarkMode::RealTime ? "real-time" : "accurate");
   std::fflush(stdout);
   // --seconds: stop once they have passed (and the server has started, or stop() is lost).
