@@ -124,6 +124,7 @@ class Timings {
   /// Records step k (1-based) and prints the progress line when it is due; `extra` is appended.
   void record(int k, const plastifem::StepReport& r, const std::string& extra = {}) {
     ms_.push_back(r.wall_ms);
+    redone_ += r.realtime_redone > 0;
     if (k % std::max(1, o_.steps / 10) == 0 || k == o_.steps)
       fmt::print("  [{:3.0f}%] step {:4d}/{}  {:6.2f} ms  Newton {:2d}  CG {:4d}  {}\n", 100.0 * k / o_.steps, k,
                  o_.steps, r.wall_ms, r.newton_iterations, r.linear_iterations, extra);
@@ -135,8 +136,12 @@ class Timings {
 
   /// Prints the summary and appends the CSV row.
   void summary() const {
-    fmt::print("per step ({}, {} thread{}): median {:.2f} ms, max {:.2f} ms over {} steps\n", o_.mode_name(), o_.threads,
+    fmt::print("per step ({}, {} thread{}): median {:.2f} ms, max {:.2f} ms over {} steps", o_.mode_name(), o_.threads,
                o_.threads > 1 ? "s" : "", median(), max(), ms_.size());
+    // Real time: steps beyond the linearisation's reach were redone as accurate ones.
+    if (redone_ > 0)
+      fmt::print(" ({} step{} redone as accurate: NewmarkSettings::realtime_reach)", redone_, redone_ == 1 ? "" : "s");
+    fmt::print("\n");
     if (!event_.empty() && !events_.empty())
       fmt::print("{}: median {:.2f} ms, max {:.2f} ms over {}\n", event_, median_of(events_), max_of(events_),
                  events_.size());
@@ -159,6 +164,7 @@ class Timings {
   static double max_of(const std::vector<double>& v) { return v.empty() ? 0 : *std::max_element(v.begin(), v.end()); }
 
   Options o_;
+  int redone_ = 0;  ///< steps with a sub-step redone as an accurate step
   std::string scene_, event_;
   std::vector<double> ms_, events_;
 };

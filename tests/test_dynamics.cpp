@@ -12,6 +12,9 @@
 //    iterations; a step accepted on stagnation says so;
 //  - real-time mode never commits a state the model cannot evaluate (an inverted ln J
 //    Neo-Hookean element) and reports the residual after its solve and whether CG converged;
+//  - a real-time step beyond its linearisation's reach (a twisted tube let go) is redone as an
+//    accurate step, and the run goes on; without that the linearised release inverts elements;
+//    largest_edge_change, the reach's measure, on a rigid turn and a stretch;
 //  - statics continue from the current state and load.
 #include "catch.hpp"
 
@@ -20,7 +23,9 @@
 #include <Eigen/Eigenvalues>
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <type_traits>
 
@@ -378,6 +383,97 @@ TEST_CASE("real time: an inverting load never commits an invalid state - residua
     CHECK_FALSE(r.linear_converged);
     CHECK(r.linear_relative_residual > 0);
   }
+}
+
+TEST_CASE("real time: a sudden release beyond the linearisation's reach is redone as an accurate step",
+          "[dynamics][realtime][release]") {
+  // A Neo-Hookean tube twisted a quarter turn at one end in 0.3 s and let go (examples/
+  // vessel_twist, coarser): while twisting, an edge changes by at most ~0.03 of its length per
+  // 10 ms step, far within a reach of 0.5; letting go snaps the end back by several edge
+  // lengths in one step.
+  const Mesh<Hex8> mesh = tube_hex8(0.003, 0.004, 0.04, 12, 10, 1);
+  const Material tissue{5e5, 0.45, 1060};  // vessel_twist's
+  SolverSettings st;
+  st.rayleigh_mass = 5;
+  st.newmark = NewmarkSettings::generalized_alpha(0.5, NewmarkMode::RealTime);
+  const std::vector<Index> end = mesh.node_set("xmax");
+  auto end_angle = [&](const auto& s) {
+    Scalar sum = 0;
+    for (Index i : end) {
+      const Vec3 X = mesh.node(i), x = X + s.displacement(i);
+      sum += std::remainder(std::atan2(x.z(), x.y()) - std::atan2(X.z(), X.y()), 2 * std::numbers::pi);
+    }
+    return sum / static_cast<Scalar>(end.size());
+  };
+  // Twists for 30 steps and releases; then up to `after` steps. Returns the steps made after the
+  // release before a failure, and the redone (sub-)steps.
+  struct Run { int after = 0, redone = 0, redone_while_twisting = 0; Scalar angle = 0; bool failed = false; };
+  auto run = [&](SolverSettings s, int after) {
+    Solver<Hex8, NeoHookean> solver(mesh, tissue, s);
+    solver.fix(mesh.node_set("xmin"));
+    ConstraintHandle twist = solver.prescribe(end, [](Scalar t, const Vec3& X) {
+      const Scalar u = std::clamp(t / 0.3, 0.0, 1.0), a = std::numbers::pi / 2 * u * u * (3 - 2 * u);
+      return Vec3(0, std::cos(a) * X.y() - std::sin(a) * X.z() - X.y(), std::sin(a) * X.y() + std::cos(a) * X.z() - X.z());
+    });
+    Run r;
+    for (int k = 0; k < 30; ++k) {
+      const StepReport rep = solver.step(0.01);
+      r.redone_while_twisting += rep.realtime_redone;
+      CHECK(rep.newton_iterations == 1);
+    }
+    CHECK(end_angle(solver) == Approx(std::numbers::pi / 2).epsilon(1e-9));
+    solver.release(twist);
+    for (; r.after < after; ++r.after) {
+      try {
+        r.redone += solver.step(0.01).realtime_redone;
+      } catch (const SolverError& e) {
+        fmt::print("  release in real time without redoing, step {}: {}\n", r.after + 1, e.what());
+        r.failed = true;
+        break;
+      }
+      REQUIRE(solver.displacement().allFinite());
+    }
+    r.angle = end_angle(solver);
+    return r;
+  };
+  SECTION("redone beyond a reach of 0.5: it runs through and unwinds") {
+    st.newmark.realtime_reach = 0.5;
+    const Run r = run(st, 50);
+    fmt::print("real-time release: {} sub-steps redone as accurate steps; end at {:.3f} deg after 0.5 s\n", r.redone,
+               r.angle * 180 / std::numbers::pi);
+    CHECK(r.redone_while_twisting == 0);
+    CHECK_FALSE(r.failed);
+    CHECK(r.redone >= 1);
+    CHECK(std::abs(r.angle) < 0.02);  // settled near its rest (1 degree), from a quarter turn
+  }
+  SECTION("never redone (the default, reach = infinity): the linearised release fails") {
+    REQUIRE(std::isinf(st.newmark.realtime_reach));
+    const Run r = run(st, 50);
+    CHECK(r.failed);
+    CHECK(r.redone == 0);
+  }
+}
+
+TEST_CASE("largest_edge_change: a rigid turn moves an edge by its chord, a stretch by its strain", "[dynamics][realtime]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(3, 2, 2);
+  const Vector u0 = Vector::Random(3 * mesh.num_nodes());  // any start: only the increment counts
+  auto moved = [&](const auto& map) {
+    Vector u1 = u0;
+    for (Index i = 0; i < mesh.num_nodes(); ++i) u1.segment<3>(3 * i) += map(Vec3(mesh.node(i)));
+    return u1;
+  };
+  const Scalar theta = 0.3;
+  const Mat3 R = Eigen::AngleAxisd(theta, Vec3::UnitZ()).toRotationMatrix();
+  // Edges across the axis turn by theta: |R e - e| = 2 sin(theta / 2); those along it do not move.
+  CHECK(largest_edge_change(mesh, u0, moved([&](const Vec3& X) { return Vec3(R * X - X); }), 1) ==
+        Approx(2 * std::sin(theta / 2)).epsilon(1e-12));
+  const Vector stretched = moved([](const Vec3& X) { return Vec3(0.07 * X.x(), -0.02 * X.y(), 0); });
+  CHECK(largest_edge_change(mesh, u0, stretched, 1) == Approx(0.07).epsilon(1e-12));
+  CHECK(largest_edge_change(mesh, u0, stretched, 2) == largest_edge_change(mesh, u0, stretched, 1));
+  CHECK(largest_edge_change(mesh, u0, u0, 1) == 0);
+  Vector bad = u0;
+  bad[5] = std::numeric_limits<Scalar>::quiet_NaN();
+  CHECK(std::isnan(largest_edge_change(mesh, u0, bad, 1)));
 }
 
 TEST_CASE("statics continue from the current state and load", "[statics]") {

@@ -707,6 +707,16 @@ TEST_CASE("bad input is rejected with clear errors", "[solver][errors]") {
     REQUIRE(contains(error_of<InvalidArgument>([&] { (void)Solver<Tet4, Linear>(bar_mesh<Tet4>(2, 1, 1), Material{1, 0.3, nan}); }),
                      "density"));
   }
+  SECTION("a real-time reach that is not > 0") {
+    for (Scalar reach : {0.0, -1.0, nan}) {
+      SolverSettings s;
+      s.newmark.realtime_reach = reach;
+      REQUIRE(contains(error_of<InvalidArgument>([&] { (void)Solver<Hex8, Linear>(mesh, soft, s); }), "realtime_reach"));
+    }
+    SolverSettings s;  // infinity: never redone
+    s.newmark.realtime_reach = inf;
+    REQUIRE_NOTHROW((void)Solver<Hex8, Linear>(mesh, soft, s));
+  }
   SECTION("Newmark parameters that are not unconditionally stable") {
     for (const auto& [beta, gamma] : {std::pair{0.0, 0.5}, {1.0 / 6, 0.5}, {0.25, 0.4}, {0.3, 0.7}, {nan, 0.5}}) {
       SolverSettings s;

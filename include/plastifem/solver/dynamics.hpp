@@ -14,6 +14,14 @@
 //    purpose, LinearSolverSettings::accept_capped) fail the step as in accurate mode, and the
 //    residual it reports is the true |r(u_{n+1})| after the solve. The check costs nothing per
 //    step: the assembly moved from the start of the next step to the end of this one.
+//    The linearisation holds for small increments: with NewmarkSettings::realtime_reach set, a
+//    step that changes some element edge by more than that fraction of its length is redone as
+//    an accurate step. A Neo-Hookean vessel twisted 90 degrees and let go needs it: the one
+//    linearised step after the release moves its end ring along chords (90 -> 12 degrees,
+//    accurate: -46), squashing the elements beside it so far that no later step, however cut,
+//    can evaluate them (examples/vessel_twist). It is off by default: a released grasp rings at
+//    3-6 edge lengths per step in accurate steps too (fat_grasp), which Corotational's linearised
+//    steps take at a fixed cost.
 //
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
 // acceleration, when not known, comes from equilibrium at t_n:
@@ -39,10 +47,42 @@
 #include <plastifem/solver/state.hpp>
 #include <plastifem/solver/system.hpp>
 
+#include <plastifem/core/parallel.hpp>
+
+#include <array>
 #include <chrono>
 #include <cmath>
 
 namespace plastifem {
+
+/// The largest change of an element edge from displacement u0 to u1, relative to its length:
+/// max over the corner-to-corner edges (E::edges) of |(u1 - u0)_j - (u1 - u0)_i| / |X_j - X_i|,
+/// read from the first 3 n dofs (the nodes' standard dofs; enriched dofs are not nodal motion).
+/// For a displacement increment linear in X it is |dF e| on the edge's unit direction e.
+/// NaN if an increment is not finite. Each edge is visited once per element that has it.
+template <FiniteElement E>
+Scalar largest_edge_change(const Mesh<E>& mesh, const Vector& u0, const Vector& u1, int threads) {
+  constexpr Index chunks = 64;  // fixed, so the result does not depend on the thread count
+  std::array<Scalar, chunks> largest{};
+  const Index ne = mesh.num_elements();
+  parallel_for(chunks, threads, [&](Index c) {
+    Scalar m = 0;  // the largest squared ratio in this chunk
+    for (Index e = ne * c / chunks; e < ne * (c + 1) / chunks; ++e) {
+      const auto& nodes = mesh.element(e);
+      for (const auto& [a, b] : E::edges) {
+        const Index i = nodes[a], j = nodes[b];
+        const Vec3 d = (u1.segment<3>(3 * j) - u0.segment<3>(3 * j)) - (u1.segment<3>(3 * i) - u0.segment<3>(3 * i));
+        const Scalar r = d.squaredNorm() / (mesh.node(j) - mesh.node(i)).squaredNorm();
+        if (r > m || std::isnan(r)) m = r;  // a NaN stays
+      }
+    }
+    largest[c] = m;
+  });
+  Scalar m = 0;
+  for (Scalar x : largest)
+    if (x > m || std::isnan(x)) m = x;
+  return std::sqrt(m);
+}
 
 /// What a step works with: the parts of a Solver, by reference.
 template <FiniteElement E, class Elastic, bool Enriched = false>
@@ -515,8 +555,13 @@ class Dynamics {
     }
     first_increment_ = du_;
     u_ += du_;
-    // The new state, evaluated: the check, the reported residual, and the next linearisation.
+    // Beyond the linearisation's reach (NewmarkSettings::realtime_reach, if set), the step is
+    // redone as an accurate one from n.
     linearisation_serial_ = 0;
+    if (const Scalar reach = st.newmark.realtime_reach;
+        std::isfinite(reach) && !(largest_edge_change(p.body.mesh(), n.u, u_, p.threads) <= reach))
+      return redone(p, n, trial, dt, serial, t0);
+    // The new state, evaluated: the check, the reported residual, and the next linearisation.
     const bool ok = evaluate(p, u_, f_int_, true, use_exact(st) ? TangentKind::Exact : TangentKind::Projected);
     if (!ok || !u_.allFinite())
       fail<SolverError>("real-time step at t = {}: the new state cannot be evaluated{}; the state is unchanged", t1,
@@ -542,6 +587,22 @@ class Dynamics {
     rep.linear_relative_residual = lr.relative_residual;
     rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return rep;
+  }
+
+  /// The real-time step from n redone as an accurate one (retried from u_n as attempt() does);
+  /// its wall time counts the abandoned linearised solve from t0.
+  StepReport redone(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial,
+                    std::chrono::steady_clock::time_point t0) {
+    StepReport r;
+    try {
+      r = accurate(p, n, trial, dt, true, serial);
+    } catch (const SolverError&) {
+      r = accurate(p, n, trial, dt, false, serial);
+      r.predictor_retries = 1;
+    }
+    r.realtime_redone = 1;
+    r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return r;
   }
 
   Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, damping_, first_increment_, u_rel_;

@@ -5,6 +5,7 @@
 #include <plastifem/solver/linear_solver.hpp>
 
 #include <cmath>
+#include <limits>
 
 namespace plastifem {
 
@@ -46,6 +47,15 @@ struct NewmarkSettings {
   /// Generalized-alpha weights of the balance (solver/newmark.hpp); 0, 0 is Newmark's method.
   /// Set them through generalized_alpha() or hht() rather than by hand.
   Scalar alpha_m = 0, alpha_f = 0;
+  /// Real time's reach: the largest change of an element edge in one step, relative to the
+  /// edge's length (|du_j - du_i| / |X_j - X_i| over the mesh's corner-to-corner edges), that
+  /// one linearised solve may make; a real-time step that moves further is redone as an
+  /// accurate (Newton) step, counted in StepReport::realtime_redone. The linearisation moves
+  /// nodes along chords: an edge turned by theta in one step is stretched by about theta^2 / 2
+  /// (12% at 0.5). Off (infinity) by default, for a fixed cost per step. Set it (0.5) for a
+  /// model undefined for inverted elements (NeoHookean, MooneyRivlin) that is let go suddenly:
+  /// solver/dynamics.hpp says why, with the figures.
+  Scalar realtime_reach = std::numeric_limits<Scalar>::infinity();
 
   /// Chung and Hulbert's generalized-alpha (1993) with high-frequency spectral radius
   /// rho_inf in [0, 1]: second order, unconditionally stable, and the most dissipation of
@@ -58,7 +68,7 @@ struct NewmarkSettings {
     if (!(rho_inf >= 0 && rho_inf <= 1))
       fail<InvalidArgument>("generalized-alpha needs a spectral radius rho_inf in [0, 1], got {}", rho_inf);
     const Scalar am = (2 * rho_inf - 1) / (rho_inf + 1), af = rho_inf / (rho_inf + 1);
-    return {0.25 * (1 - am + af) * (1 - am + af), 0.5 - am + af, mode, am, af};
+    return {0.25 * (1 - am + af) * (1 - am + af), 0.5 - am + af, mode, am, af, NewmarkSettings{}.realtime_reach};
   }
   /// Hilber, Hughes and Taylor's alpha method (1977) with their alpha in [-1/3, 0] (Abaqus'
   /// parameter of the same name; its default is -0.05): alpha_m = 0, alpha_f = -alpha,
@@ -66,7 +76,7 @@ struct NewmarkSettings {
   static NewmarkSettings hht(Scalar alpha, NewmarkMode mode = NewmarkMode::Accurate) {
     if (!(alpha >= -1.0 / 3.0 && alpha <= 0))
       fail<InvalidArgument>("HHT needs alpha in [-1/3, 0], got {}", alpha);
-    return {0.25 * (1 - alpha) * (1 - alpha), 0.5 - alpha, mode, 0, -alpha};
+    return {0.25 * (1 - alpha) * (1 - alpha), 0.5 - alpha, mode, 0, -alpha, NewmarkSettings{}.realtime_reach};
   }
 };
 
@@ -90,6 +100,7 @@ struct StepReport {
   int load_steps = 1;            ///< statics: increments used (after automatic cutting)
   int substeps = 1;              ///< dynamics: Newmark sub-steps used (> 1 after automatic step cutting)
   int predictor_retries = 0;     ///< dynamics: sub-steps redone from u_n after failing from the predictor
+  int realtime_redone = 0;       ///< real time: sub-steps redone as accurate steps (NewmarkSettings::realtime_reach)
   /// dynamics: constrained nodes whose prescribed path (or given velocity) jumps at the end of a
   /// (sub-)step, summed over sub-steps; their velocity and acceleration are the path's after
   /// the jump (Constraints::evaluate).
@@ -103,6 +114,7 @@ struct StepReport {
     newton_iterations += r.newton_iterations;
     linear_iterations += r.linear_iterations;
     predictor_retries += r.predictor_retries;
+    realtime_redone += r.realtime_redone;
     path_jumps += r.path_jumps;
     residual = r.residual;
     relative_residual = r.relative_residual;
@@ -168,6 +180,9 @@ inline void validate_settings(const SolverSettings& s) {
         (l->kind == LinearSolverKind::ConjugateGradient && (!(l->tolerance > 0 && l->tolerance < 1) || l->max_iterations < 1)))
       fail<InvalidArgument>("CG needs a tolerance in (0, 1) and at least one iteration, got {} and {}", l->tolerance,
                             l->max_iterations);
+  if (!(nm.realtime_reach > 0))  // infinity allowed: never redone
+    fail<InvalidArgument>("realtime_reach must be > 0 (infinity: never redo a real-time step), got {}",
+                          nm.realtime_reach);
   if (s.max_step_cuts < 0 || s.max_step_cuts > 30)
     fail<InvalidArgument>("max_step_cuts must be in [0, 30] (2^30 sub-steps), got {}", s.max_step_cuts);
   if (s.threads < 0) fail<InvalidArgument>("threads must be >= 0 (0: OpenMP's default), got {}", s.threads);
