@@ -73,11 +73,11 @@ class Discretization {
   /// node, or null for the mesh): the nodes' rest positions after plastic flow, which the
   /// enriched elements' stiffness points are mapped with (the cut itself is placed in the
   /// mesh's coordinates).
-  CutReport cut(const Cut& surface, const CutOptions& options, bool shifted, int id, int& applied_id,
+  CutReport cut(const Cut& surface, const CutOptions& options, EnrichmentFunction psi, int id, int& applied_id,
                 const Vector* rest = nullptr)
     requires Enriched
   {
-    return enrichment_.apply(mesh_, dofs_, surface, options, shifted, id, applied_id, rest);
+    return enrichment_.apply(mesh_, dofs_, surface, options, psi, id, applied_id, rest);
   }
   /// Gives element e the rest shape X (plastic flow): its elastic data and, if it is enriched,
   /// its pieces' stiffness points. Throws InvalidArgument, with nothing changed, if X fails the

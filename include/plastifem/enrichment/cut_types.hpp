@@ -11,6 +11,10 @@
 
 namespace plastifem {
 
+/// An active enrichment's function psi(side, node) (enrichment/enrichment_policy.hpp), as the
+/// cut code takes it.
+using EnrichmentFunction = Scalar (*)(Scalar side, Scalar node);
+
 struct CutPlane;
 struct CutPatch;
 class CutSurface;

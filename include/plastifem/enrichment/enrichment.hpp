@@ -82,9 +82,9 @@ class Enrichment {
   /// comment). Throws InvalidArgument, with nothing changed, if the cut is refused. The cut is
   /// placed in the mesh's coordinates; the new enriched elements' stiffness points are mapped
   /// with the rest positions `rest` (3 per node: the material mesh after plastic flow), or with
-  /// the mesh's if null.
-  CutReport apply(const Mesh<E>& mesh, DofMap& dofs, const Cut& surface, const CutOptions& opt, bool shifted, int id,
-                  int& applied_id, const Vector* rest = nullptr) {
+  /// the mesh's if null. `psi_of` is the enrichment policy's function psi(side, node).
+  CutReport apply(const Mesh<E>& mesh, DofMap& dofs, const Cut& surface, const CutOptions& opt,
+                  EnrichmentFunction psi_of, int id, int& applied_id, const Vector* rest = nullptr) {
     const auto t0 = std::chrono::steady_clock::now();
     opt.validate();
     if (id >= num_cuts()) fail<InvalidArgument>("cut: no cut with id {}", id);
@@ -294,7 +294,7 @@ class Enrichment {
           EnrichedDof d{a, R.row[i], {0, 0}};
           for (int s = 0; s < 2; ++s) {
             const Scalar Hs = (split ? s : side) == 0 ? 1.0 : -1.0;
-            d.psi[s] = shifted ? 0.5 * (Hs - R.H[i]) : Hs;
+            d.psi[s] = psi_of(Hs, R.H[i]);
           }
           const auto it = existing ? std::find_if(existing->enriched.begin(), existing->enriched.end(),
                                                   [&](const EnrichedDof& x) { return x.row == d.row; })

@@ -14,8 +14,8 @@ namespace plastifem {
 struct Heaviside {
   static constexpr const char* name = "Heaviside";
   static constexpr bool active = true;
-  static constexpr bool shifted = false;
   using Params = CutOptions;
+  static constexpr Scalar psi(Scalar side, Scalar /*node*/) { return side; }
 };
 
 }  // namespace plastifem

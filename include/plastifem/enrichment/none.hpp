@@ -6,7 +6,6 @@ namespace plastifem {
 struct NoEnrichment {
   static constexpr const char* name = "NoEnrichment";
   static constexpr bool active = false;
-  static constexpr bool shifted = false;
   struct Params {};
 };
 

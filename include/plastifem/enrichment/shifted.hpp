@@ -11,8 +11,8 @@ namespace plastifem {
 struct ShiftedHeaviside {
   static constexpr const char* name = "ShiftedHeaviside";
   static constexpr bool active = true;
-  static constexpr bool shifted = true;
   using Params = CutOptions;
+  static constexpr Scalar psi(Scalar side, Scalar node) { return 0.5 * (side - node); }
 };
 
 }  // namespace plastifem

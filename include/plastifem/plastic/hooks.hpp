@@ -87,6 +87,8 @@ class PlasticHooks<Policy, E, Elastic, true> {
   }
   template <class Body>
   void init(const Body& body, State& s) {
+    static_assert(PlasticEngine<Engine, Policy, Body>, "the plastic policy's Engine lacks what the Solver calls "
+                                                       "(plastic/plastic.hpp: the PlasticEngine concept)");
     engine_.init(body, params_, s);
   }
   template <class Body>

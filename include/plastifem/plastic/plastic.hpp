@@ -14,22 +14,51 @@
 #include <plastifem/plastic/params.hpp>
 
 #include <concepts>
+#include <cstdint>
+#include <vector>
 
 namespace plastifem {
 
-/// A plastic policy: a name, whether it is active, its parameters, and for an active one
-/// where its plastic rotation lives (per vertex, or one per element).
+/// A plastic policy: a name, whether it is active, its parameters, and for an active one what
+/// the Solver's hooks (plastic/hooks.hpp) read: parameters that validate themselves and say
+/// how much time a static solve flows over; a State (its part of the Solver's State) with the
+/// material mesh `rest` (3 per node), a `version` that changes whenever the rest shapes do, and
+/// per element an `off` flag that a cut sets to State::cut; and an Engine (PlasticEngine).
 template <class P>
 concept PlasticModel = requires {
   { P::name } -> std::convertible_to<const char*>;
   { P::active } -> std::convertible_to<bool>;
   typename P::Params;
-} && (!P::active || requires {
-  { P::per_vertex_rotation } -> std::convertible_to<bool>;
-  requires std::same_as<typename P::Params, PlasticParams>;
-  typename P::State;  // its part of the Solver's State
-  // and `template <FiniteElement E, class Elastic> using Engine`: its update (plastic/plasticity.hpp)
+} && (!P::active || requires(const typename P::Params& prm, typename P::State& s) {
+  prm.validate();
+  { prm.static_time } -> std::convertible_to<Scalar>;
+  { s.rest } -> std::convertible_to<const Vector&>;
+  { s.version } -> std::convertible_to<std::uint64_t>;
+  s.off[0] = P::State::cut;
+  { s == s } -> std::convertible_to<bool>;  // the rollback tests compare states
+  // and `template <FiniteElement E, class Elastic> using Engine`, a PlasticEngine
 });
+
+/// An active policy's Engine for a body type: what the hooks call (plastic/hooks.hpp).
+///   init(body, params, state)        the first state: rest = the mesh, nothing flowed
+///   sync(body, state, threads)       the body's element data to the state's rest shapes; true if changed
+///   update(body, u, dt, params, state, version, threads, anchor)
+///                                    the flow after a converged step of dt that ended at u; on
+///                                    change, the state gets the new rest shapes and `version`;
+///                                    anchor: per node, where the material mesh stays put
+///   change_params(old, new, state)   new parameters mid-run
+///   pattern_changed()                the dof map changed (a cut)
+template <class Engine, class Policy, class Body>
+concept PlasticEngine = requires(Engine& en, Body& body, const Body& cbody, const Vector& u,
+                                 const typename Policy::Params& prm, typename Policy::State& s,
+                                 const typename Policy::State& cs, std::uint64_t version,
+                                 const std::vector<char>& anchor) {
+  en.init(cbody, prm, s);
+  { en.sync(body, cs, 1) } -> std::convertible_to<bool>;
+  { en.update(cbody, u, Scalar{}, prm, s, version, 1, anchor) } -> std::same_as<PlasticReport>;
+  en.change_params(prm, prm, s);
+  en.pattern_changed();
+};
 
 static_assert(PlasticModel<NoPlasticity>);  // the others: <plastifem/plasticity.hpp>
 

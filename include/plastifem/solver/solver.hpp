@@ -36,10 +36,12 @@ namespace plastifem {
 template <FiniteElement E, class Elastic, class Plastic = NoPlasticity, class Enrich = NoEnrichment>
   requires ElasticModel<Elastic, E>
 class Solver {
-  static_assert(PlasticModel<Plastic>, "the plastic policy must be NoPlasticity, VertexBlended or CellCentered "
-                                       "(plastic/plastic.hpp: the PlasticModel concept)");
-  static_assert(EnrichmentModel<Enrich>, "the enrichment policy must be NoEnrichment, Heaviside or ShiftedHeaviside "
-                                         "(enrichment/enrichment_policy.hpp: the EnrichmentModel concept)");
+  static_assert(PlasticModel<Plastic>, "the plastic policy lacks what the Solver asks of it (NoPlasticity, "
+                                       "VertexBlended, CellCentered or your own: plastic/plastic.hpp, the "
+                                       "PlasticModel concept)");
+  static_assert(EnrichmentModel<Enrich>, "the enrichment policy lacks what the Solver asks of it (NoEnrichment, "
+                                         "Heaviside, ShiftedHeaviside or your own: enrichment/enrichment_policy.hpp, "
+                                         "the EnrichmentModel concept)");
   static constexpr bool enriched = Enrich::active;
   using PlasticHooksType = PlasticHooks<Plastic, E, Elastic>;  // plastic/hooks.hpp
 
@@ -683,7 +685,7 @@ CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOption
 {
   check_not_solving("cut");
   int id = -1;
-  cut_report_ = body_.cut(surface, options, Enrich::shifted, -1, id, PlasticHooksType::rest_positions(current_.plastic));
+  cut_report_ = body_.cut(surface, options, &Enrich::psi, -1, id, PlasticHooksType::rest_positions(current_.plastic));
   cut_applied();
   return CutHandle{id, cut_owner_.id()};
 }
@@ -700,7 +702,7 @@ void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surfa
                           "issued it",
                           h.id);
   int id = -1;
-  cut_report_ = body_.cut(surface, options, Enrich::shifted, h.id, id, PlasticHooksType::rest_positions(current_.plastic));
+  cut_report_ = body_.cut(surface, options, &Enrich::psi, h.id, id, PlasticHooksType::rest_positions(current_.plastic));
   if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) cut_applied();
 }
 
@@ -724,11 +726,16 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::nodal_displacements() const {
   Eigen::Matrix3Xd u = Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
-  if constexpr (enriched && !Enrich::shifted) {
-    const auto& enr = body_.enrichment();
-    for (int c = 0; c < enr.num_cuts(); ++c)
-      for (Index i = 0; i < mesh().num_nodes(); ++i)
-        if (const Index r = enr.row(c, i); r >= 0) u.col(i) += enr.sign(c, i) * current_.u.template segment<3>(3 * r);
+  if constexpr (enriched) {
+    if constexpr (!vanishes_at_nodes<Enrich>()) {  // u_i + psi(H_i, H_i) a_i
+      const auto& enr = body_.enrichment();
+      for (int c = 0; c < enr.num_cuts(); ++c)
+        for (Index i = 0; i < mesh().num_nodes(); ++i)
+          if (const Index r = enr.row(c, i); r >= 0) {
+            const Scalar h = enr.sign(c, i);
+            u.col(i) += Enrich::psi(h, h) * current_.u.template segment<3>(3 * r);
+          }
+    }
   }
   return u;
 }
