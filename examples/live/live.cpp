@@ -244,8 +244,7 @@ class Simulation {
     failures_ = 0;
     error_.clear();
     ms_.clear();
-    wall_start_ = pace_wall_start_ = std::chrono::steady_clock::now();
-    sim_start_ = pace_sim_start_ = scene_->time();
+    restart_clocks();
     fmt::print("live: scene '{}' ready in {:.0f} ms: {} dofs, {} surface triangles\n", name,
                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(),
                scene_->num_dofs(), scene_->surface().surface().num_triangles());
@@ -415,11 +414,15 @@ class Simulation {
         fmt::print("live: step failed ({}): {}\n", failures_, error_);
         if (failures_ >= 20) error_ += " (paused: reset or choose a scene)";
         publish(false, 0);
-        // Do not run away from the wall clock while failing.
-        wall_start_ = pace_wall_start_ = std::chrono::steady_clock::now();
-        sim_start_ = pace_sim_start_ = scene_->time();
+        restart_clocks();  // do not run away from the wall clock while failing
       }
     }
+  }
+
+  /// Both clock pairs (the status's and the pace's) start again from now and the scene's time.
+  void restart_clocks() {
+    wall_start_ = pace_wall_start_ = std::chrono::steady_clock::now();
+    sim_start_ = pace_sim_start_ = scene_->time();
   }
 
   Options o_;

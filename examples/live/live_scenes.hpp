@@ -57,19 +57,11 @@ class Scene {
 /// The grasper's largest speed (m/s): the mouse can jump, the tissue is dragged at most this fast.
 inline constexpr Scalar grasper_speed = 0.5;
 
-/// Tearing<S> where S cuts (a plastic-only solver has none).
-template <class S, bool = S::EnrichmentPolicy::active>
-struct TearingOf {
-  using type = std::nullptr_t;
-};
-template <class S>
-struct TearingOf<S, true> {
-  using type = std::unique_ptr<Tearing<S>>;
-};
-
 /// A Scene over one Solver type S (Hex8), its skin embedded, optionally tearing.
 template <class S>
 class SolverScene final : public Scene {
+  static_assert(S::EnrichmentPolicy::active, "every live scene can be cut: its solver needs an enrichment");
+
  public:
   SolverScene(std::string name, std::unique_ptr<S> solver, const TriangleSurface& skin)
       : name_(std::move(name)), s_(std::move(solver)), skin_(s_->mesh(), skin) {
@@ -81,10 +73,8 @@ class SolverScene final : public Scene {
   /// The grasper moves in the plane z = const only (a sheet on a tray, held in z).
   void set_planar_grasp() { planar_ = true; }
   void enable_tearing(const TearingSettings& t, std::vector<Vec3> nick) {
-    if constexpr (S::EnrichmentPolicy::active) {
-      tearing_ = std::make_unique<Tearing<S>>(*s_, t);
-      if (!nick.empty()) tearing_->start(std::move(nick));
-    }
+    tearing_ = std::make_unique<Tearing<S>>(*s_, t);
+    if (!nick.empty()) tearing_->start(std::move(nick));
   }
 
   std::string name() const override { return name_; }
@@ -100,8 +90,7 @@ class SolverScene final : public Scene {
       grasp_->device.add(s_->time() + dt, grasp_->offset);
     }
     StepReport r = s_->step(dt);
-    if constexpr (S::EnrichmentPolicy::active)
-      if (tearing_) tearing_->update();
+    if (tearing_) tearing_->update();
     if (grasp_) force_ = sum_at(s_->reaction_forces(), grasp_->nodes);
     return r;
   }
@@ -142,13 +131,8 @@ class SolverScene final : public Scene {
   Vec3 grasp_force() const override { return force_; }
 
   void cut(const CutSurface& sheet) override {
-    if constexpr (S::EnrichmentPolicy::active) {
-      s_->cut(sheet);
-      skin_.update(*s_);
-    } else {
-      (void)sheet;
-      fail<InvalidArgument>("cut: the {} scene's solver has no enrichment (cut the organ or the sheet)", name_);
-    }
+    s_->cut(sheet);
+    skin_.update(*s_);
   }
   Index num_dofs() const override { return s_->num_dofs(); }
   Scalar time() const override { return s_->time(); }
@@ -180,7 +164,7 @@ class SolverScene final : public Scene {
   bool planar_ = false;
   std::optional<Grasp> grasp_;
   Vec3 target_ = Vec3::Zero(), force_ = Vec3::Zero();
-  typename TearingOf<S>::type tearing_{};
+  std::unique_ptr<Tearing<S>> tearing_;
 };
 
 using CuttingSolver = Solver<Hex8, Corotational, NoPlasticity, ShiftedHeaviside>;
