@@ -81,7 +81,8 @@ int main(int argc, char** argv) try {
   o.apply(st);  // --threads, --mode
   // In real time, the one linearised step after letting go would move the end ring back along
   // chords and squash the Neo-Hookean elements beside it beyond evaluation: a step that changes
-  // an edge by more than half its length is redone as an accurate one (the release, 1-2 steps).
+  // an edge by more than half its length is redone as an accurate one (the release step's
+  // sub-steps: docs/scenes.md).
   st.newmark.realtime_reach = 0.5;
   Solver<Hex8, NeoHookean> s(mesh, material, st);
   s.fix(mesh.node_set("xmin"));

@@ -461,6 +461,21 @@ struct StepEnrichment {
 };
 static_assert(EnrichmentModel<StepEnrichment> && !vanishes_at_nodes<StepEnrichment>());
 static_assert(vanishes_at_nodes<ShiftedHeaviside>() && !vanishes_at_nodes<Heaviside>());
+/// Not an enrichment: psi is not constexpr (whether it vanishes at the nodes is a compile-time
+/// decision), or not a plain function of two Scalars that the cut code can hold.
+struct RuntimePsi {
+  static constexpr const char* name = "RuntimePsi";
+  static constexpr bool active = true;
+  using Params = CutOptions;
+  static Scalar psi(Scalar side, Scalar) { return side; }
+};
+struct ReferencePsi {
+  static constexpr const char* name = "ReferencePsi";
+  static constexpr bool active = true;
+  using Params = CutOptions;
+  static constexpr Scalar psi(const Scalar& side, const Scalar&) { return side; }
+};
+static_assert(!EnrichmentModel<RuntimePsi> && !EnrichmentModel<ReferencePsi>);
 
 TEST_CASE("X-FEM: an enrichment written outside the library composes - the 0/1 step gives Heaviside's field",
           "[enrichment][policy]") {

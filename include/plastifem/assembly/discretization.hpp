@@ -11,7 +11,8 @@
 // element is integrated over its pieces by its point law (enrichment/cut_element.hpp); with no
 // cut the element loop takes one predictable branch per element.
 //
-// `Enriched` says whether the body can be cut (the Heaviside and ShiftedHeaviside policies).
+// `Enriched` says whether the body can be cut (any active enrichment policy: Heaviside,
+// ShiftedHeaviside, or a user's, enrichment/enrichment_policy.hpp).
 // Without it every cut path is discarded by `if constexpr`: the X-FEM code is neither compiled
 // nor included (its headers come with <plastifem/cutting.hpp>), and the element loop has no
 // branch at all. Both enriched policies share one Discretization (they differ in the functions,

@@ -24,6 +24,7 @@
 #include <plastifem/enrichment/none.hpp>
 
 #include <concepts>
+#include <type_traits>
 
 namespace plastifem {
 
@@ -32,8 +33,10 @@ concept EnrichmentModel = requires {
   { P::name } -> std::convertible_to<const char*>;
   { P::active } -> std::convertible_to<bool>;
   typename P::Params;
-} && (!P::active || (std::same_as<typename P::Params, CutOptions> && requires(Scalar h) {
-                       { P::psi(h, h) } -> std::same_as<Scalar>;
+} && (!P::active || (std::same_as<typename P::Params, CutOptions> && requires {
+                       // a function the cut code can hold (EnrichmentFunction), and constexpr
+                       { &P::psi } -> std::convertible_to<EnrichmentFunction>;
+                       typename std::bool_constant<(P::psi(Scalar(1), Scalar(1)) == P::psi(Scalar(1), Scalar(1)))>;
                      }));
 
 /// Whether an active enrichment's functions vanish at every node (psi(H, H) = 0 on both sides):

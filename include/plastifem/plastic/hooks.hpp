@@ -14,7 +14,9 @@
 //   constraints_changed, pattern_changed, set_params, rest_positions, material_positions
 //
 // The hooks see the body and the state only through their arguments, so a policy written in
-// a user's file composes with the Solver by giving its own specialisation.
+// a user's file composes with the Solver: it gives the State, Params and Engine that the
+// PlasticModel and PlasticEngine concepts state (plastic/plastic.hpp; tests/test_plastic_policy.cpp
+// composes a nodal creep so), or a specialisation of PlasticHooks of its own.
 #include <plastifem/element/element.hpp>
 #include <plastifem/plastic/params.hpp>
 #include <plastifem/core/log.hpp>
@@ -72,7 +74,7 @@ class PlasticHooks {
 template <class Policy, FiniteElement E, class Elastic>
 class PlasticHooks<Policy, E, Elastic, true> {
  public:
-  using State = typename Policy::State;  // PlasticTable
+  using State = typename Policy::State;  // PlasticTable for the library's policies
   using Params = typename Policy::Params;
   using Engine = typename Policy::template Engine<E, Elastic>;
 

@@ -15,15 +15,18 @@
 
 #include <concepts>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 namespace plastifem {
 
 /// A plastic policy: a name, whether it is active, its parameters, and for an active one what
-/// the Solver's hooks (plastic/hooks.hpp) read: parameters that validate themselves and say
-/// how much time a static solve flows over; a State (its part of the Solver's State) with the
-/// material mesh `rest` (3 per node), a `version` that changes whenever the rest shapes do, and
-/// per element an `off` flag that a cut sets to State::cut; and an Engine (PlasticEngine).
+/// the Solver's hooks (plastic/hooks.hpp) and State (solver/state.hpp) use: parameters that
+/// validate themselves and say how much time a static solve flows over; a State (its part of
+/// the Solver's State: copied, swapped and compared bit for bit) with the material mesh `rest`
+/// (a Vector, 3 per node), a `version` that changes whenever the rest shapes do, and per
+/// element an `off` flag, 0 while it flows, that a cut sets to State::cut; and an Engine
+/// (PlasticEngine).
 template <class P>
 concept PlasticModel = requires {
   { P::name } -> std::convertible_to<const char*>;
@@ -32,10 +35,12 @@ concept PlasticModel = requires {
 } && (!P::active || requires(const typename P::Params& prm, typename P::State& s) {
   prm.validate();
   { prm.static_time } -> std::convertible_to<Scalar>;
-  { s.rest } -> std::convertible_to<const Vector&>;
+  requires std::copyable<typename P::State> && std::swappable<typename P::State>;
+  requires std::same_as<std::remove_cvref_t<decltype(s.rest)>, Vector>;
   { s.version } -> std::convertible_to<std::uint64_t>;
+  { s.off[0] == 0 } -> std::convertible_to<bool>;
   s.off[0] = P::State::cut;
-  { s == s } -> std::convertible_to<bool>;  // the rollback tests compare states
+  { s == s } -> std::convertible_to<bool>;
   // and `template <FiniteElement E, class Elastic> using Engine`, a PlasticEngine
 });
 
@@ -49,7 +54,7 @@ concept PlasticModel = requires {
 ///   change_params(old, new, state)   new parameters mid-run
 ///   pattern_changed()                the dof map changed (a cut)
 template <class Engine, class Policy, class Body>
-concept PlasticEngine = requires(Engine& en, Body& body, const Body& cbody, const Vector& u,
+concept PlasticEngine = std::default_initializable<Engine> && requires(Engine& en, Body& body, const Body& cbody, const Vector& u,
                                  const typename Policy::Params& prm, typename Policy::State& s,
                                  const typename Policy::State& cs, std::uint64_t version,
                                  const std::vector<char>& anchor) {

@@ -57,7 +57,8 @@ namespace plastifem {
 
 /// The largest change of an element edge from displacement u0 to u1, relative to its length:
 /// max over the corner-to-corner edges (E::edges) of |(u1 - u0)_j - (u1 - u0)_i| / |X_j - X_i|,
-/// read from the first 3 n dofs (the nodes' standard dofs; enriched dofs are not nodal motion).
+/// read from the first 3 n dofs, the nodes' standard dofs: in a cut body the pieces' motion
+/// relative to each other (the enriched dofs: a cut opening, pieces turning apart) is not counted.
 /// For a displacement increment linear in X it is |dF e| on the edge's unit direction e.
 /// NaN if an increment is not finite. Each edge is visited once per element that has it.
 template <FiniteElement E>
@@ -67,7 +68,10 @@ Scalar largest_edge_change(const Mesh<E>& mesh, const Vector& u0, const Vector& 
   const Index ne = mesh.num_elements();
   parallel_for(chunks, threads, [&](Index c) {
     Scalar m = 0;  // the largest squared ratio in this chunk
-    for (Index e = ne * c / chunks; e < ne * (c + 1) / chunks; ++e) {
+    // 64-bit products: ne * 64 overflows an Index past 33 million elements.
+    const auto first = static_cast<Index>(std::int64_t{ne} * c / chunks);
+    const auto last = static_cast<Index>(std::int64_t{ne} * (c + 1) / chunks);
+    for (Index e = first; e < last; ++e) {
       const auto& nodes = mesh.element(e);
       for (const auto& [a, b] : E::edges) {
         const Index i = nodes[a], j = nodes[b];
@@ -560,7 +564,7 @@ class Dynamics {
     linearisation_serial_ = 0;
     if (const Scalar reach = st.newmark.realtime_reach;
         std::isfinite(reach) && !(largest_edge_change(p.body.mesh(), n.u, u_, p.threads) <= reach))
-      return redone(p, n, trial, dt, serial, t0);
+      return redone(p, n, trial, dt, serial, t0, lr.iterations);
     // The new state, evaluated: the check, the reported residual, and the next linearisation.
     const bool ok = evaluate(p, u_, f_int_, true, use_exact(st) ? TangentKind::Exact : TangentKind::Projected);
     if (!ok || !u_.allFinite())
@@ -590,9 +594,12 @@ class Dynamics {
   }
 
   /// The real-time step from n redone as an accurate one (retried from u_n as attempt() does);
-  /// its wall time counts the abandoned linearised solve from t0.
+  /// its wall time and CG iterations count the abandoned linearised solve (from t0, and
+  /// `abandoned_cg`). Its warm start for the next step is the whole step's increment, which is
+  /// what a real-time step starts CG from (accurate's own is its first Newton increment, from
+  /// the predictor).
   StepReport redone(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial,
-                    std::chrono::steady_clock::time_point t0) {
+                    std::chrono::steady_clock::time_point t0, int abandoned_cg) {
     StepReport r;
     try {
       r = accurate(p, n, trial, dt, true, serial);
@@ -600,7 +607,10 @@ class Dynamics {
       r = accurate(p, n, trial, dt, false, serial);
       r.predictor_retries = 1;
     }
+    trial.warm_start = trial.u - n.u;
+    trial.warm_start_previous.resize(0);
     r.realtime_redone = 1;
+    r.linear_iterations += abandoned_cg;
     r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return r;
   }

@@ -123,9 +123,9 @@ class Solver {
   {
     return body_.enrichment();
   }
-  /// Every node's physical displacement, one node per column: u_i, and for Heaviside
-  /// enrichment u_i + sum_cuts H_i a_i (its standard dofs alone are not the node's
-  /// displacement; with shifted enrichment they are).
+  /// Every node's physical displacement, one node per column: u_i + sum_cuts psi(H_i, H_i) a_i
+  /// (Heaviside: u_i + H_i a_i, so its standard dofs alone are not the node's displacement;
+  /// with shifted enrichment, whose psi vanishes at the nodes, they are).
   Eigen::Matrix3Xd nodal_displacements() const;
   /// Adds a dof slot to a node (the enrichment policies' entry point): the system is rebuilt,
   /// the state grows with zeros in the new rows. A slot no element couples is held at zero.
