@@ -30,6 +30,13 @@ static_assert(all_models_on_every_element<Linear, LinearMeanDilatation, Corotati
                                           CorotationalMeanDilatation, NeoHookean, NeoHookeanAbaqus, StableNeoHookean,
                                           NeoHookeanMeanDilatation, NeoHookeanAbaqusMeanDilatation,
                                           StableNeoHookeanMeanDilatation>);
+// A model with only the 4-argument evaluate (forces and energy) is refused: the assembly also
+// calls the one with a tangent kind and the lower-triangle flag (declared only: never called).
+struct ForcesOnly : Linear {
+  template <FiniteElement E>
+  static Scalar evaluate(const ElementData<E>&, const ElementNodes<E>&, ElementVector<E>&, ElementMatrix<E>*);
+};
+static_assert(ElasticModel<Linear, Hex8> && !ElasticModel<ForcesOnly, Hex8>);
 
 namespace {
 

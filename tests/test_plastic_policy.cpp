@@ -47,7 +47,7 @@ class NodalCreepEngine {
     const Mesh<E>& mesh = body.mesh();
     std::vector<Index> all(static_cast<size_t>(mesh.num_elements()));
     for (Index e = 0; e < mesh.num_elements(); ++e) all[static_cast<size_t>(e)] = e;
-    body.set_rest_shapes(all, [&](Index e) { return rest_of(mesh, t.rest, e); }, threads);
+    body.set_rest_shapes(all, [&](Index e) { return mesh.element_nodes(e, t.rest); }, threads);
     body.set_rest_displacement(t.rest - Eigen::Map<const Vector>(mesh.nodes().data(), 3 * mesh.num_nodes()));
     synced_ = t.version;
     return true;
@@ -65,7 +65,7 @@ class NodalCreepEngine {
     const Vec3 centre = reference_centre<E>();
     for (Index e = 0; e < mesh.num_elements(); ++e) {
       if (t.off[static_cast<size_t>(e)]) continue;
-      const ElementNodes<E> X = rest_of(mesh, t.rest, e);
+      const ElementNodes<E> X = mesh.element_nodes(e, t.rest);
       ElementNodes<E> x;
       for (int a = 0; a < E::num_nodes; ++a) {
         const Index i = mesh.element(e)[static_cast<size_t>(a)];
@@ -94,11 +94,6 @@ class NodalCreepEngine {
   void pattern_changed() {}
 
  private:
-  static ElementNodes<E> rest_of(const Mesh<E>& mesh, const Vector& rest, Index e) {
-    ElementNodes<E> X;
-    for (int a = 0; a < E::num_nodes; ++a) X.col(a) = rest.segment<3>(3 * mesh.element(e)[static_cast<size_t>(a)]);
-    return X;
-  }
   std::uint64_t synced_ = 0;
   std::vector<Scalar> share_;
 };

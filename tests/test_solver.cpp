@@ -1018,3 +1018,77 @@ TEMPLATE_TEST_CASE("a settled body is accepted by every later solve: static solv
   CHECK(attempt("step 2", [&] { return s.step(0.01); }));
   CHECK((s.displacement() - u2).norm() <= 1e-10 * u2.norm());  // and the steps leave it there
 }
+
+namespace {
+// A nonlinear problem written outside the library, to show what newton() asks of one
+// (NewtonProblem): r(u) = A u + u.^3 - b, the gradient of Pi(u) = u'Au/2 + sum u_i^4/4 - b'u,
+// with K = A + 3 diag(u.^2) (A symmetric positive definite: Pi is convex, one root), solved
+// densely.
+struct CubicSprings {
+  Eigen::Matrix2d A;
+  Eigen::Vector2d b;
+  Eigen::Vector2d r = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d K = Eigen::Matrix2d::Identity();
+  bool tangent_now = false;
+  std::vector<Scalar> residuals;  // |r| of the evaluations, in order, a repeated value once
+
+  Scalar residual(const Vector& u, bool with_tangent) {
+    r = A * u + u.array().cube().matrix() - b;
+    if (with_tangent) K = A + Eigen::Matrix2d(3 * u.array().square().matrix().asDiagonal());
+    tangent_now = with_tangent;
+    if (residuals.empty() || residuals.back() != r.norm()) residuals.push_back(r.norm());  // the tangent's own call repeats it
+    return r.norm();
+  }
+  void tangent(const Vector& u) { residual(u, true); }
+  bool tangent_current() const { return tangent_now; }
+  Scalar scale() const { return b.norm(); }
+  LinearSolveReport solve(int, Scalar, Scalar, Vector& du) {
+    du = K.ldlt().solve(-r);
+    return {1, 0, true};
+  }
+  bool fall_back() { return false; }
+  [[noreturn]] void invalid(const Vector&) const { fail<SolverError>("CubicSprings: r is not finite"); }
+  Scalar merit(const Vector& u) const { return 0.5 * u.dot(A * u) + u.array().pow(4).sum() / 4 - b.dot(u); }
+  Scalar slope(const Vector& du) const { return r.dot(du); }
+  bool eager_tangent() const { return false; }
+};
+static_assert(NewtonProblemWithPotential<CubicSprings>);
+static_assert(!NewtonProblem<Vector>);
+static_assert(LineSearch<ResidualBacktracking, CubicSprings> && LineSearch<EnergyArmijo, CubicSprings>);
+}  // namespace
+
+TEST_CASE("newton() solves a problem written outside the library, quadratically", "[solver][newton]") {
+  CubicSprings p;
+  p.A << 2, -1, -1, 2;
+  p.b << 1, 20;
+  NewtonOptions o;
+  o.tolerance = 1e-13;
+  o.line_search = true;
+  auto run = [&](const auto& search) {
+    p.residuals.clear();
+    Vector u = Vector::Zero(2), du(2), u_new(2);
+    const NewtonResult res = newton(p, u, o, search, du, u_new);
+    REQUIRE(res.converged);
+    // The root, checked by evaluating r independently of the solve.
+    const Eigen::Vector2d r = p.A * u + u.array().cube().matrix() - p.b;
+    REQUIRE(r.norm() <= 1e-13 * p.b.norm());
+    // Quadratic convergence: once |r| < 1, |r_k+1| <= C |r_k|^2 with C of the order of
+    // |K^-1| |d2r/du2| = 6 |u| / lambda_min(K) <= 6 * 3 / 1 here (the evaluations along the
+    // converged path: a full step is accepted at once near the root).
+    int quadratic_steps = 0;
+    for (size_t k = 0; k + 1 < p.residuals.size(); ++k)
+      if (p.residuals[k] < 1 && p.residuals[k + 1] > 1e-14 * p.b.norm()) {
+        REQUIRE(p.residuals[k + 1] <= 20 * p.residuals[k] * p.residuals[k]);
+        ++quadratic_steps;
+      }
+    REQUIRE(quadratic_steps >= 2);
+    return u;
+  };
+  const Vector by_residual = run(ResidualBacktracking{});
+  const Vector by_energy = run(EnergyArmijo{});
+  REQUIRE((by_residual - by_energy).norm() <= 1e-12);
+  // A residual that is not finite ends in the problem's own error.
+  p.b << 1, std::numeric_limits<Scalar>::quiet_NaN();
+  Vector u = Vector::Zero(2), du(2), u_new(2);
+  REQUIRE_THROWS_AS(newton(p, u, o, ResidualBacktracking{}, du, u_new), SolverError);
+}

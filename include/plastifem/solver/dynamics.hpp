@@ -129,16 +129,7 @@ class Dynamics {
                         "unchanged",
                         n.t + dt, dt);
     if (p.settings.newmark.mode == NewmarkMode::RealTime) return realtime(p, n, trial, dt, serial);
-    // At huge time steps (stiffness-dominated, dt omega >> 1) the constant-acceleration
-    // predictor can start Newton far from the solution, where u_n is the better guess: the
-    // retry costs only when a step fails.
-    try {
-      return accurate(p, n, trial, dt, true, serial);
-    } catch (const SolverError&) {
-      StepReport r = accurate(p, n, trial, dt, false, serial);
-      r.predictor_retries = 1;
-      return r;
-    }
+    return accurate_with_retry(p, n, trial, dt, serial);
   }
 
   /// a = the acceleration of state s from equilibrium (see the file comment).
@@ -356,9 +347,6 @@ class Dynamics {
       kind = TangentKind::Projected;
       return true;
     }
-    static bool eager_tangent() { return false; }
-    Scalar merit(const Vector&) const { return 0; }
-    Scalar slope(const Vector&) const { return 0; }
     [[noreturn]] void invalid(const Vector& u) const {
       fail<SolverError>("Newmark step at t = {}: the residual is not finite{}; the state is unchanged", n.t + nm.dt,
                         d.where_invalid(p, u));
@@ -593,20 +581,27 @@ class Dynamics {
     return rep;
   }
 
-  /// The real-time step from n redone as an accurate one (retried from u_n as attempt() does);
+  /// The accurate step from the predictor, else from u_n. At huge time steps (stiffness-
+  /// dominated, dt omega >> 1) the constant-acceleration predictor can start Newton far from the
+  /// solution, where u_n is the better guess: the retry costs only when a step fails.
+  StepReport accurate_with_retry(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial) {
+    try {
+      return accurate(p, n, trial, dt, true, serial);
+    } catch (const SolverError&) {
+      StepReport r = accurate(p, n, trial, dt, false, serial);
+      r.predictor_retries = 1;
+      return r;
+    }
+  }
+
+  /// The real-time step from n redone as an accurate one (with accurate_with_retry);
   /// its wall time and CG iterations count the abandoned linearised solve (from t0, and
   /// `abandoned_cg`). Its warm start for the next step is the whole step's increment, which is
   /// what a real-time step starts CG from (accurate's own is its first Newton increment, from
   /// the predictor).
   StepReport redone(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial,
                     std::chrono::steady_clock::time_point t0, int abandoned_cg) {
-    StepReport r;
-    try {
-      r = accurate(p, n, trial, dt, true, serial);
-    } catch (const SolverError&) {
-      r = accurate(p, n, trial, dt, false, serial);
-      r.predictor_retries = 1;
-    }
+    StepReport r = accurate_with_retry(p, n, trial, dt, serial);
     trial.warm_start = trial.u - n.u;
     trial.warm_start_previous.resize(0);
     r.realtime_redone = 1;

@@ -1,33 +1,57 @@
 #pragma once
 // One Newton iteration loop for every nonlinear solve the toolkit makes (a Newmark step, a
-// static load increment), generic over the problem:
-//
-//   problem.residual(u, with_tangent) -> |r(u)| over the free dofs (+inf or NaN if some element
-//                                        cannot be evaluated); with_tangent: K(u) too
-//   problem.tangent(u)                   K at u (the residual's u)
-//   problem.scale()                      the force scale of the last residual (the largest term
-//                                        of the balance)
-//   problem.solve(it, |r|, target, du)   du = -A^{-1} r, with the problem's matrix, linear solver
-//                                        and tolerance; falls back from the exact to the
-//                                        projected tangent if the system is indefinite
-//   problem.fall_back()                  use the projected tangent from now on (false if it
-//                                        already does)
-//   problem.merit(u), problem.slope(du)  the potential energy at the last residual's u, and its
-//                                        derivative along du (line search in statics)
-//   problem.invalid(u)                   [[noreturn]]: says which element made r non-finite
-//   problem.tangent_current()            whether the last residual came with its tangent
-//
-// and over two policies: the line search (ResidualBacktracking in dynamics, EnergyArmijo in
-// statics, where the residual of a conservative model has a potential), and the tangent's
-// timing (lazily, only for an iterate that failed the convergence test; or eagerly).
+// static load increment), generic over the problem (the NewtonProblem concept below says what
+// it must answer) and over two policies: the line search (ResidualBacktracking in dynamics,
+// EnergyArmijo in statics, where the residual of a conservative model has a potential), and the
+// tangent's timing (lazily, only for an iterate that failed the convergence test; or eagerly).
 #include <plastifem/core/vector_ops.hpp>
 #include <plastifem/solver/linear_solver.hpp>
 #include <plastifem/solver/settings.hpp>
 
 #include <cmath>
+#include <concepts>
 #include <limits>
 
 namespace plastifem {
+
+/// What newton() asks of a nonlinear problem r(u) = 0 over the free dofs.
+template <class P>
+concept NewtonProblem = requires(P& p, const Vector& u, Vector& du, bool with_tangent, int iteration, Scalar r) {
+  /// |r(u)| (+inf or NaN if some element cannot be evaluated); with_tangent: K(u) too.
+  { p.residual(u, with_tangent) } -> std::same_as<Scalar>;
+  /// K at u (the last residual's u).
+  p.tangent(u);
+  /// Whether the last residual came with its tangent.
+  { p.tangent_current() } -> std::same_as<bool>;
+  /// The force scale of the last residual (the largest term of the balance).
+  { p.scale() } -> std::same_as<Scalar>;
+  /// du = -A^{-1} r with the problem's matrix, linear solver and a tolerance that reaches
+  /// `target` from |r| (inexact Newton); falls back from the exact to the projected tangent if
+  /// the system is indefinite.
+  { p.solve(iteration, r, r, du) } -> std::same_as<LinearSolveReport>;
+  /// Use the projected tangent from now on (false if it already does).
+  { p.fall_back() } -> std::same_as<bool>;
+  /// [[noreturn]]: says which element made r non-finite.
+  p.invalid(u);
+};
+
+/// A problem with a potential (statics of a hyperelastic body), as EnergyArmijo needs it.
+template <class P>
+concept NewtonProblemWithPotential = NewtonProblem<P> && requires(P& p, const Vector& u) {
+  /// The potential energy at the last residual's u, and its derivative r . du along du.
+  { p.merit(u) } -> std::same_as<Scalar>;
+  { p.slope(u) } -> std::same_as<Scalar>;
+  /// Whether a step the search does not apply to evaluates its tangent with its residual.
+  { p.eager_tangent() } -> std::same_as<bool>;
+};
+
+/// A line search for problem P: from u along du with |r(u)| = r0, the step length s taken, with
+/// u_new = u + s du, r_new = |r(u_new)|, and `found` false if no length decreased the merit.
+template <class L, class P>
+concept LineSearch = requires(const L& search, P& p, const Vector& u, Vector& u_new, Scalar r0, Scalar& r_new,
+                              bool applies, bool& found) {
+  { search(p, u, u, r0, applies, u_new, r_new, found) } -> std::same_as<Scalar>;
+};
 
 struct NewtonOptions {
   Scalar tolerance = 1e-6;            ///< |r| <= tolerance * scale
@@ -88,7 +112,7 @@ inline void record(StepReport& rep, const NewtonResult& r) {
 /// the exact Jacobian, so du need not descend; or the tangent is stale), `found` is false and
 /// u_new is the full step.
 struct ResidualBacktracking {
-  template <class Problem>
+  template <NewtonProblem Problem>
   Scalar operator()(Problem& p, const Vector& u, const Vector& du, Scalar r0, bool applies, Vector& u_new,
                     Scalar& r_new, bool& found) const {
     found = true;
@@ -114,7 +138,7 @@ struct ResidualBacktracking {
 /// before it falls (Hex8 bar at 1 g: 179 Newton iterations on |r|, 31 on Pi). If no step length
 /// decreases either, `found` is false and u_new is the full step.
 struct EnergyArmijo {
-  template <class Problem>
+  template <NewtonProblemWithPotential Problem>
   Scalar operator()(Problem& p, const Vector& u, const Vector& du, Scalar r0, bool applies, Vector& u_new,
                     Scalar& r_new, bool& found) const {
     found = true;
@@ -157,8 +181,8 @@ struct EnergyArmijo {
 /// assembles 1.0 instead of 1.6 tangents, 0.49 -> 0.38 ms per step.
 /// A line search that fails along a fresh exact tangent falls back to the projected tangent
 /// for the rest of the solve (an exact Hessian that does not descend is indefinite there).
-template <class Problem, class LineSearch>
-NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const LineSearch& line_search, Vector& du,
+template <NewtonProblem Problem, LineSearch<Problem> Search>
+NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const Search& line_search, Vector& du,
                     Vector& u_new) {
   NewtonResult res;
   Scalar rnorm = p.residual(u, true);
