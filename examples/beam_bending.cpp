@@ -63,6 +63,7 @@ int main(int argc, char** argv) try {
     study<Hex8, M>(nu, levels, bending + shear);
     study<Tet4, M>(nu, levels, bending + shear);
     study<Tet10, M>(nu, std::max(1, levels - 1), bending + shear);
+    study<Wedge6, M>(nu, levels, bending + shear);
   };
   if (model == "linear") run.operator()<Linear>();
   else run.operator()<Corotational>();

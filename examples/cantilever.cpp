@@ -1,7 +1,7 @@
 // Flagship example: a soft cantilever bar falling under gravity (SCENES.md bar scenes),
 // clamped at x = 0, stepped by implicit Newmark, written as a PVD series for ParaView.
 //
-//   cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10]
+//   cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10|wedge6]
 //              [--model corotational|corotational-element|linear|neohookean|stable-neohookean] [--mode accurate|realtime] [--steps N]
 //              [--load gravity|stretch] [--rho-inf R] [--every K] [--out DIR]
 // --rho-inf R steps with generalized-alpha of high-frequency spectral radius R in [0, 1] instead
@@ -46,7 +46,7 @@ Options parse(int argc, char** argv) {
     else if (a == "--every") o.every = std::max(1, std::stoi(value()));
     else if (a == "--out") o.out = value();
     else if (a == "--help" || a == "-h") {
-      fmt::print("usage: cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10]\n"
+      fmt::print("usage: cantilever [--scene bar90|bar720|bar5760|bar46080] [--element hex8|tet4|tet10|wedge6]\n"
                  "                  [--model corotational|corotational-element|linear|neohookean|stable-neohookean] [--mode accurate|realtime] [--steps N]\n"
                  "                  [--load gravity|stretch] [--rho-inf R] [--every K] [--out DIR]\n"
                  "  --rho-inf R: generalized-alpha with high-frequency spectral radius R in [0, 1] (default: Newmark 1/4, 1/2)\n");
@@ -128,7 +128,8 @@ int main(int argc, char** argv) try {
   if (o.element == "hex8") run_model<Hex8>(o);
   else if (o.element == "tet4") run_model<Tet4>(o);
   else if (o.element == "tet10") run_model<Tet10>(o);
-  else fail<InvalidArgument>("unknown element '{}': hex8, tet4 or tet10", o.element);
+  else if (o.element == "wedge6") run_model<Wedge6>(o);
+  else fail<InvalidArgument>("unknown element '{}': hex8, tet4, tet10 or wedge6", o.element);
   return 0;
 } catch (const std::exception& e) {
   fmt::print(stderr, "cantilever: {}\n", e.what());

@@ -40,7 +40,7 @@ struct Combo {
 };
 // One combination per element type, both models with an exact tangent on Hex8.
 using Combos = std::tuple<Combo<Tet4, Corotational>, Combo<Tet10, NeoHookean>, Combo<Hex8, Corotational>,
-                          Combo<Hex8, NeoHookean>>;
+                          Combo<Hex8, NeoHookean>, Combo<Wedge6, Corotational>>;
 
 template <FiniteElement E>
 Vector rest_positions(const Mesh<E>& mesh) {

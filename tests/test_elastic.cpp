@@ -25,7 +25,8 @@ using namespace plastifem;
 // each Solver checks its own composition).
 template <class... Models>
 constexpr bool all_models_on_every_element =
-    ((ElasticModel<Models, Tet4> && ElasticModel<Models, Tet10> && ElasticModel<Models, Hex8>) && ...);
+    ((ElasticModel<Models, Tet4> && ElasticModel<Models, Tet10> && ElasticModel<Models, Hex8> &&
+      ElasticModel<Models, Wedge6>) && ...);
 static_assert(all_models_on_every_element<Linear, LinearMeanDilatation, Corotational, CorotationalPerElement,
                                           CorotationalMeanDilatation, NeoHookean, NeoHookeanAbaqus, StableNeoHookean,
                                           NeoHookeanMeanDilatation, NeoHookeanAbaqusMeanDilatation,
@@ -136,7 +137,7 @@ Mat3 svd_rotation(const ElementNodes<E>& X, const ElementNodes<E>& x) {
 // ---- the small-strain stiffness K0 ---------------------------------------------------------
 
 TEMPLATE_TEST_CASE("K0 is symmetric, has the 6 rigid-body modes as its null space, and is PSD", "[elastic][K0]",
-                   Tet4, Tet10, Hex8) {
+                   Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   std::mt19937 rng(7);
   for (int trial = 0; trial < 3; ++trial) {
@@ -176,7 +177,7 @@ TEMPLATE_TEST_CASE("K0 is symmetric, has the 6 rigid-body modes as its null spac
 // ---- rigid motions: corotational forces vanish, linear ones do not --------------------------
 
 TEMPLATE_TEST_CASE("large rigid rotation: no corotational force, a large linear ghost force", "[elastic][rotation]",
-                   Tet4, Tet10, Hex8) {
+                   Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   std::mt19937 rng(11);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -213,7 +214,7 @@ TEMPLATE_TEST_CASE("large rigid rotation: no corotational force, a large linear 
 // ---- the two models agree at small strain, and their energies ------------------------------
 
 TEMPLATE_TEST_CASE("small strain: corotational equals linear to second order, and energies", "[elastic][small]", Tet4,
-                   Tet10, Hex8) {
+                   Tet10, Hex8, Wedge6) {
   using E = TestType;
   std::mt19937 rng(13);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -250,7 +251,7 @@ TEMPLATE_TEST_CASE("small strain: corotational equals linear to second order, an
 }
 
 TEMPLATE_TEST_CASE("corotational tangent is R K0 R^T and symmetric at a deformed state", "[elastic][tangent]", Tet4,
-                   Tet10, Hex8) {
+                   Tet10, Hex8, Wedge6) {
   using E = TestType;
   std::mt19937 rng(17);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -273,7 +274,7 @@ TEMPLATE_TEST_CASE("corotational tangent is R K0 R^T and symmetric at a deformed
 }
 
 TEMPLATE_TEST_CASE("corotational force is frame indifferent: f(Q x + t) = Q f(x)", "[elastic][objectivity]", Tet4,
-                   Tet10, Hex8) {
+                   Tet10, Hex8, Wedge6) {
   using E = TestType;
   std::mt19937 rng(19);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -295,7 +296,7 @@ TEMPLATE_TEST_CASE("corotational force is frame indifferent: f(Q x + t) = Q f(x)
 }
 
 TEMPLATE_TEST_CASE("inverted element: finite corotational force that pushes the node back", "[elastic][inverted]",
-                   Tet4, Tet10, Hex8) {
+                   Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   const ElementNodes<E> X = E::reference_nodes();
   ElementNodes<E> x = X;
@@ -344,7 +345,7 @@ TEMPLATE_TEST_CASE("inverted element: finite corotational force that pushes the 
 // ---- Corotational (one rotation per quadrature point) ----------------------------------------
 
 TEMPLATE_TEST_CASE("per-point corotational: rigid motions, small strain, exact energy gradient, torque-free",
-                   "[elastic][corotational]", Tet4, Tet10, Hex8) {
+                   "[elastic][corotational]", Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   std::mt19937 rng(29);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -459,7 +460,7 @@ TEMPLATE_TEST_CASE("per-point corotational: rigid motions, small strain, exact e
 }
 
 TEMPLATE_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress, von Mises of uniaxial stress", "[elastic][stress]",
-                   Tet4, Tet10, Hex8) {
+                   Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   std::mt19937 rng(23);
   const ElementNodes<E> X = distorted_element<E>(rng);

@@ -20,6 +20,10 @@ Vec3 random_reference_point(std::mt19937& rng) {
   std::uniform_real_distribution<Scalar> u(0.0, 1.0);
   if constexpr (std::is_same_v<E, Hex8>) {
     return Vec3(2 * u(rng) - 1, 2 * u(rng) - 1, 2 * u(rng) - 1);
+  } else if constexpr (std::is_same_v<E, Wedge6>) {
+    Vec3 p(u(rng), u(rng), 2 * u(rng) - 1);
+    while (p.x() + p.y() > 1) p.head<2>() = Vec3(u(rng), u(rng), 0).head<2>();
+    return p;
   } else {
     Vec3 p(u(rng), u(rng), u(rng));
     while (p.sum() > 1) p = Vec3(u(rng), u(rng), u(rng));
@@ -73,7 +77,34 @@ void check_hex_rule(const Q& q) {
   REQUIRE(std::abs(integrate_monomial(q, 0, 0, d) / cube_monomial(0, 0, d) - 1) > 1e-6);
 }
 
+// Prism {x, y >= 0, x + y <= 1} x [-1, 1]: x^a y^b z^c integrates to a! b! / (a + b + 2)! times
+// the segment's integral of z^c. A rule of degree d is exact for a + b <= d and c <= d, and off
+// by > 1e-6 for some monomial of degree d + 1 in (x, y) or in z.
+Scalar prism_monomial(int a, int b, int c) {
+  return factorial(a) * factorial(b) / factorial(a + b + 2) * cube_monomial_1d(c);
+}
+template <class Q>
+void check_prism_rule(const Q& q) {
+  INFO("prism rule with " << q.size << " points, degree " << q.degree);
+  for (int a = 0; a <= q.degree; ++a)
+    for (int b = 0; a + b <= q.degree; ++b)
+      for (int c = 0; c <= q.degree; ++c)
+        REQUIRE(integrate_monomial(q, a, b, c) == Approx(prism_monomial(a, b, c)).epsilon(1e-14).margin(1e-15));
+  const int d = q.degree + 1;
+  Scalar worst = 0;
+  for (int a = 0; a <= d; ++a) worst = std::max(worst, std::abs(integrate_monomial(q, a, d - a, 0) / prism_monomial(a, d - a, 0) - 1));
+  if (d % 2 == 0) worst = std::max(worst, std::abs(integrate_monomial(q, 0, 0, d) / prism_monomial(0, 0, d) - 1));
+  REQUIRE(worst > 1e-6);
+}
+
 }  // namespace
+
+TEST_CASE("prism rules are exact to their degree and not above", "[quadrature]") {
+  check_prism_rule(prism_rule<1>());
+  check_prism_rule(prism_rule<2>());
+  check_prism_rule(prism_rule<3>());
+  check_prism_rule(prism_rule<4>());
+}
 
 TEST_CASE("tetrahedron rules are exact to their degree and not above", "[quadrature]") {
   check_tet_rule(tet_rule_1());
@@ -88,7 +119,7 @@ TEST_CASE("hexahedron Gauss rules are exact to their degree and not above", "[qu
 }
 
 TEMPLATE_TEST_CASE("shape functions: partition of unity, Kronecker property, FD gradients", "[element]", Tet4,
-                   Tet10, Hex8) {
+                   Tet10, Hex8, Wedge6) {
   using E = TestType;
   const auto Xref = E::reference_nodes();
   SECTION("Kronecker property at the nodes") {
@@ -126,8 +157,10 @@ TEMPLATE_TEST_CASE("shape functions: partition of unity, Kronecker property, FD 
   }
   SECTION("faces and edges refer to valid local nodes and faces point outwards") {
     const Vec3 centroid = Xref.rowwise().mean();
-    for (const auto& f : E::faces) {
-      for (int a : f) REQUIRE((a >= 0 && a < E::num_nodes));
+    for (int face = 0; face < E::num_faces; ++face) {
+      const auto& f = E::faces[static_cast<size_t>(face)];
+      for (int k = 0; k < face_node_count(E::face_shape(face)); ++k)
+        REQUIRE((f[static_cast<size_t>(k)] >= 0 && f[static_cast<size_t>(k)] < E::num_nodes));
       const Vec3 n = (Xref.col(f[1]) - Xref.col(f[0])).cross(Xref.col(f[2]) - Xref.col(f[0]));
       REQUIRE(n.dot(Xref.col(f[0]) - centroid) > 0);
     }
@@ -145,7 +178,7 @@ TEST_CASE("Tet10 mid-edge nodes sit at the middle of their edges", "[element]") 
       REQUIRE((X.col(f[3 + k]) - 0.5 * (X.col(f[k]) + X.col(f[(k + 1) % 3]))).norm() == 0);
 }
 
-TEMPLATE_TEST_CASE("element volumes match closed form", "[element]", Tet4, Tet10, Hex8) {
+TEMPLATE_TEST_CASE("element volumes match closed form", "[element]", Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   // Affine map x = A xi + b with det A = 2.7: volume = |det A| * reference volume.
   Mat3 A;
@@ -182,6 +215,16 @@ TEST_CASE("volumes of non-affinely distorted elements match closed form", "[elem
          0, 0, 0, 0, 1, 1, 1 + t, 1;
     REQUIRE(element_volume<Hex8>(X) == Approx(1 + t / 4).epsilon(1e-14));
   }
+  SECTION("Wedge6: a prism with one top corner raised") {
+    // Unit right prism over the triangle (0,0), (1,0), (0,1) with node 4 raised to (1, 0, 1 + t):
+    // the prism's map gives z = w (1 + t x) for w in [0, 1], so V = int_T (1 + t x) dA = 1/2 + t/6.
+    const Scalar t = 0.6;
+    ElementNodes<Wedge6> X;
+    X << 0, 1, 0, 0, 1, 0,
+         0, 0, 1, 0, 0, 1,
+         0, 0, 0, 1, 1 + t, 1;
+    REQUIRE(element_volume<Wedge6>(X) == Approx(0.5 + t / 6).epsilon(1e-14));
+  }
   SECTION("Tet10: a curved edge") {
     // Mid-node 4 of edge (0,1) pulled outwards by d along -y: x(xi) = xi + N_4(xi) (0, -d, 0)
     // with N_4 = 4 L0 L1 = 4 (1 - x - y - z) x, so det J = 1 - d dN_4/dy = 1 + 4 d x and
@@ -193,7 +236,82 @@ TEST_CASE("volumes of non-affinely distorted elements match closed form", "[elem
   }
 }
 
-TEMPLATE_TEST_CASE("Jacobian sign detects inverted elements", "[element]", Tet4, Tet10, Hex8) {
+// The concept checks the node lists, not only that they exist: a face naming a node the element
+// does not have, or a sub-tetrahedron off the element, is refused.
+struct FaceOffTheElement : Tet4 {
+  static constexpr std::array<std::array<int, 3>, 4> faces{{{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 4}}};
+};
+struct SubTetOffTheElement : Hex8 {
+  static constexpr std::array<std::array<int, 4>, 1> sub_tetrahedra{{{0, 1, 2, 8}}};
+};
+static_assert(FiniteElement<Tet4> && !FiniteElement<FaceOffTheElement> && !FiniteElement<SubTetOffTheElement>);
+
+TEMPLATE_TEST_CASE("element traits: containment, faces, sub-tetrahedra and volume degree", "[element]", Tet4,
+                   Tet10, Hex8, Wedge6) {
+  using E = TestType;
+  const auto Xref = E::reference_nodes();
+  const Vec3 centre = reference_centre<E>();
+  SECTION("contains: every node and random inner points in; nodes pushed outward out") {
+    std::mt19937 rng(7);
+    REQUIRE(E::contains(centre, 0.0));
+    for (int a = 0; a < E::num_nodes; ++a) {
+      REQUIRE(E::contains(Xref.col(a), 1e-14));
+      // 1% beyond a corner is outside; the reference elements are convex, so corners are extreme.
+      if (a < E::num_vertices) REQUIRE_FALSE(E::contains(Vec3(Xref.col(a) + 0.01 * (Xref.col(a) - centre)), 1e-10));
+    }
+    for (int k = 0; k < 100; ++k) REQUIRE(E::contains(random_reference_point<E>(rng), 1e-12));
+  }
+  SECTION("faces: node lists by kind, corners first, closed and outward (divergence theorem)") {
+    // On the closed reference boundary, the integral of n dA vanishes and (1/3) of x . n dA is
+    // the volume; both integrands are exact for the face rules on the flat reference faces.
+    Vec3 n_total = Vec3::Zero();
+    Scalar volume = 0;
+    for (int f = 0; f < E::num_faces; ++f) {
+      const FaceShape kind = E::face_shape(f);
+      for (int k = 0; k < face_node_count(kind); ++k) {
+        const int node = E::faces[static_cast<size_t>(f)][static_cast<size_t>(k)];
+        REQUIRE((k < face_corners(kind)) == (node < E::num_vertices));
+      }
+      Loads<E>::for_each_face_point(f, [&](const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) {
+        const Vec3 n_dA = w * ds.cross(dt);
+        n_total += n_dA;
+        volume += xi.dot(n_dA) / 3;
+      });
+    }
+    REQUIRE(n_total.norm() < 1e-14);
+    REQUIRE(volume == Approx(E::reference_volume).epsilon(1e-14));
+  }
+  SECTION("sub-tetrahedra fill the reference element") {
+    // Each inside (its vertices are nodes of the convex reference element) and non-degenerate;
+    // volumes adding up to the element's leaves no room for overlap.
+    Scalar v = 0;
+    for (const auto& t : E::sub_tetrahedra) {
+      const Scalar vt = (Xref.col(t[1]) - Xref.col(t[0])).cross(Xref.col(t[2]) - Xref.col(t[0])).dot(Xref.col(t[3]) - Xref.col(t[0])) / 6;
+      REQUIRE(std::abs(vt) > 1e-3 * E::reference_volume);
+      v += std::abs(vt);
+    }
+    REQUIRE(v == Approx(E::reference_volume).epsilon(1e-14));
+  }
+  SECTION("volume_degree integrates det J of a distorted element exactly, one degree less does not") {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<Scalar> u(-0.1, 0.1);
+    ElementNodes<E> X = Xref;
+    for (int a = 0; a < E::num_nodes; ++a) X.col(a) += Vec3(u(rng), u(rng), u(rng));
+    auto volume_by = [&](auto rule) {
+      Scalar v = 0;
+      for (int k = 0; k < rule.size; ++k) v += rule.weights[k] * jacobian<E>(X, rule.points[k]).determinant();
+      return v;
+    };
+    const Scalar exact = volume_by(E::template quadrature<E::mass_degree>());  // exact for N_a N_b det J, so for det J
+    REQUIRE(volume_by(E::template quadrature<E::volume_degree>()) == Approx(exact).epsilon(1e-13));
+    if constexpr (E::volume_degree > 0) {
+      // The distortion's O(0.1^2) terms: above 1e-6 of the volume for these seeds.
+      REQUIRE(std::abs(volume_by(E::template quadrature<E::volume_degree - 1>()) - exact) > 1e-6 * exact);
+    }
+  }
+}
+
+TEMPLATE_TEST_CASE("Jacobian sign detects inverted elements", "[element]", Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   ElementNodes<E> X = E::reference_nodes();
   REQUIRE(jacobian<E>(X, Vec3(0.2, 0.2, 0.2)).determinant() > 0);

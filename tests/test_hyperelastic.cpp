@@ -35,7 +35,8 @@ using AllHyper = std::tuple<Combo<Tet4, NeoHookean>, Combo<Tet10, NeoHookean>, C
                             Combo<Tet4, NeoHookeanAbaqus>, Combo<Tet10, NeoHookeanAbaqus>, Combo<Hex8, NeoHookeanAbaqus>,
                             Combo<Tet4, StableNeoHookean>, Combo<Tet10, StableNeoHookean>, Combo<Hex8, StableNeoHookean>,
                             Combo<Hex8, NeoHookeanMeanDilatation>, Combo<Hex8, NeoHookeanAbaqusMeanDilatation>,
-                            Combo<Hex8, StableNeoHookeanMeanDilatation>>;
+                            Combo<Hex8, StableNeoHookeanMeanDilatation>, Combo<Wedge6, NeoHookean>,
+                            Combo<Wedge6, StableNeoHookean>>;
 
 TEMPLATE_LIST_TEST_CASE("hyperelastic force = -dW/dx and tangent = df/dx (finite differences)", "[hyper][fd]", AllHyper) {
   using E = typename TestType::E;

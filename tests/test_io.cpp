@@ -84,7 +84,7 @@ const char* encoding_name(io::Encoding e) {
 
 // ================================================================================ .vtu ========
 
-TEMPLATE_TEST_CASE("vtu round trip is bit-exact in every encoding", "[io][vtu]", Tet4, Tet10, Hex8) {
+TEMPLATE_TEST_CASE("vtu round trip is bit-exact in every encoding", "[io][vtu]", Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   const Mesh<E> mesh = perturbed_bar<E>(3, 2, 1);
   std::mt19937 rng(42);
@@ -426,6 +426,53 @@ TEST_CASE("gmsh 2.2: unit cube as one hex, physical groups, an unused node", "[i
   CHECK(mesh.face_sets().size() == 1);
   CHECK(mesh.face_set("fixed") == std::vector<FaceRef>{{0, 5}});
   CHECK(same_faces(mesh.face_set("fixed"), select_boundary_faces(mesh, at_x0)));
+}
+
+TEST_CASE("gmsh 2.2: unit cube as 2 prisms, triangle and quadrangle groups matched to their faces", "[io][gmsh]") {
+  // Wedge6 has faces of two kinds: a group of triangles and one of quadrangles each find theirs.
+  const std::string text = R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$PhysicalNames
+3
+2 1 "bottom"
+2 2 "left"
+3 3 "body"
+$EndPhysicalNames
+$Nodes
+8
+1 0 0 0
+2 1 0 0
+3 0 1 0
+4 1 1 0
+5 0 0 1
+6 1 0 1
+7 0 1 1
+8 1 1 1
+$EndNodes
+$Elements
+5
+1 2 2 1 1 1 2 4
+2 2 2 1 1 1 4 3
+3 3 2 2 2 1 3 7 5
+4 6 2 3 3 1 2 4 5 6 8
+5 6 2 3 3 1 4 3 5 8 7
+$EndElements
+)";
+  const Mesh<Wedge6> mesh = io::read_gmsh_string<Wedge6>(text, "prisms.msh");
+  const Mesh<Wedge6> box = bar_mesh<Wedge6>(1, 1, 1);
+  REQUIRE(mesh.num_elements() == 2);
+  CHECK(mesh.nodes() == box.nodes());
+  CHECK(mesh.elements() == box.elements());
+  CHECK(mesh.face_set("bottom").size() == 2);
+  CHECK(same_faces(mesh.face_set("bottom"), select_boundary_faces(mesh, [](const Vec3& p) { return p.z() == 0; })));
+  CHECK(same_faces(mesh.face_set("left"), select_boundary_faces(mesh, at_x0)));
+  CHECK(same_faces(mesh.face_set("bottom"), box.face_set("zmin")));
+  // A quadrangle where the prisms have triangles matches nothing, and says so.
+  std::string wrong = text;
+  wrong.replace(wrong.find("1 2 2 1 1 1 2 4"), 15, "1 3 2 1 1 1 2 4 3");
+  CHECK(contains(io_error([&] { (void)io::read_gmsh_string<Wedge6>(wrong, "prisms.msh"); }),
+                 "prisms.msh:23: surface element 1 of physical group 'bottom' matches no boundary face of the Wedge6 mesh"));
 }
 
 TEST_CASE("gmsh 4.1: unit cube as 6 Kuhn tets, sparse node tags in entity blocks", "[io][gmsh]") {

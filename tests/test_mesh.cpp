@@ -45,6 +45,14 @@ TEST_CASE("bar scene generators match SCENES.md counts", "[generators]") {
     // 34,560 tets * 1.1e-16 = 3.8e-12.
     REQUIRE(total_volume(hex) == Approx(r.nx * r.ny * r.nz).epsilon(4e-12));
     REQUIRE(total_volume(tet) == Approx(r.nx * r.ny * r.nz).epsilon(4e-12));
+    const auto wedge = bar_mesh<Wedge6>(r.nx, r.ny, r.nz);
+    REQUIRE(wedge.num_elements() == 2 * r.hexes);
+    REQUIRE(wedge.num_nodes() == r.nodes);
+    REQUIRE(total_volume(wedge) == Approx(r.nx * r.ny * r.nz).epsilon(4e-12));
+    // Box sides: one quadrilateral per cell on the x and y sides, two triangles on the z sides.
+    REQUIRE(wedge.face_set("xmax").size() == static_cast<size_t>(r.ny * r.nz));
+    REQUIRE(wedge.face_set("ymin").size() == static_cast<size_t>(r.nx * r.nz));
+    REQUIRE(wedge.face_set("zmin").size() == static_cast<size_t>(2 * r.nx * r.ny));
   }
 }
 
@@ -129,8 +137,44 @@ TEST_CASE("thick shell and tube generators", "[generators]") {
       for (Index i : m.node_set("top")) REQUIRE(m.node(i).z() == Approx(t));
     }
   }
+  SECTION("thick shell of prisms from a flat triangulated grid is a box, either offset direction") {
+    TriangleSurface s;
+    s.vertices.resize(3, 9);
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 3; ++i) s.vertices.col(i + 3 * j) = Vec3(i, j, 0);
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < 2; ++i) {
+        const Index a = i + 3 * j, b = a + 1, c = a + 4, d = a + 3;  // counter-clockwise from +z
+        s.triangles.push_back({a, b, c});
+        s.triangles.push_back({a, c, d});
+      }
+    for (Scalar t : {0.5, -0.5}) {
+      const auto m = thick_shell_wedge6(s, t, 3);
+      REQUIRE(m.num_elements() == 24);
+      REQUIRE(total_volume(m) == Approx(4 * 0.5).epsilon(1e-14));
+      for (Index i : m.node_set("top")) REQUIRE(m.node(i).z() == Approx(t));
+      for (Index i : m.node_set("bottom")) REQUIRE(m.node(i).z() == 0);
+      // The face sets are boundary faces on their planes, facing out of the shell.
+      for (const char* name : {"bottom", "top"}) {
+        const auto& faces = m.face_set(name);
+        REQUIRE(faces.size() == 8);
+        const Scalar z = std::string(name) == "top" ? t : 0.0;
+        REQUIRE(faces == select_boundary_faces(m, [&](const Vec3& p) { return std::abs(p.z() - z) < 1e-12; }));
+        for (const FaceRef& f : faces) {
+          const auto n = m.face_nodes(f);
+          const Vec3 normal = (m.node(n[1]) - m.node(n[0])).cross(m.node(n[2]) - m.node(n[0]));
+          REQUIRE(normal.z() * (z == 0 ? -t : t) > 0);
+        }
+      }
+    }
+  }
   SECTION("bad arguments") {
     REQUIRE(contains(error_of([] { tube_hex8(1.0, 0.5, 1.0, 8, 2, 1); }), "r_in < r_out"));
+    TriangleSurface s{Tet4::reference_nodes().leftCols<3>(), {{0, 1, 2}}};
+    REQUIRE(contains(error_of([&] { thick_shell_wedge6(s, 0.1, 0); }), "at least one layer"));
+    REQUIRE(contains(error_of([&] { thick_shell_wedge6(s, 0.0, 1); }), "finite and non-zero"));
+    s.triangles[0][2] = 5;
+    REQUIRE(contains(error_of([&] { thick_shell_wedge6(s, 0.1, 1); }), "triangle 0 has vertex 5 out of range [0, 3)"));
     REQUIRE(contains(error_of([] { box_hex8({0, 1, 1}); }), "at least one cell"));
   }
 }
@@ -190,7 +234,7 @@ TEST_CASE("mesh validation gives clear errors", "[mesh][errors]") {
 }
 
 TEMPLATE_TEST_CASE("point locator: the answers of testing every element, at a fraction of the elements",
-                   "[mesh][locate]", Tet4, Tet10, Hex8) {
+                   "[mesh][locate]", Tet4, Tet10, Hex8, Wedge6) {
   // Random points in and around the bounding box, points exactly on nodes and edges (shared by
   // several elements: the lowest-numbered one is the answer either way) and element centres,
   // on a bar and (Hex8) a curved tube whose elements all differ.

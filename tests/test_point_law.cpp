@@ -85,7 +85,7 @@ void check_law_derivatives(const Law& law, const Mat3& F, TangentKind kind, Scal
 }  // namespace
 
 TEMPLATE_TEST_CASE("F at the centre, vertices and Gauss points of an affinely moved element is exact",
-                   "[point][kinematics]", Tet4, Tet10, Hex8) {
+                   "[point][kinematics]", Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   const ElementNodes<E> X = deformed_element<E>(1).first;
   Mat3 A;
@@ -153,7 +153,7 @@ TEMPLATE_TEST_CASE("the corotational law's rotation and stretch: F = R S, R prop
 }
 
 TEMPLATE_TEST_CASE("every model's point-set integral equals its fused kernel over the Gauss rule", "[point][kernel]",
-                   Tet4, Tet10, Hex8) {
+                   Tet4, Tet10, Hex8, Wedge6) {
   using E = TestType;
   for (unsigned seed : {1u, 2u}) {
     check_point_set_equals_fused<Linear, E>(seed);
@@ -169,16 +169,17 @@ TEMPLATE_TEST_CASE("every model's point-set integral equals its fused kernel ove
 }
 
 TEMPLATE_TEST_CASE("a point set of any size: the model's integral is the sum of its point law over the points",
-                   "[point][kernel]", Tet4, Tet10, Hex8) {
+                   "[point][kernel]", Tet4, Tet10, Hex8, Wedge6) {
   // Corotational takes a point set in chunks of the Gauss rule's size through its batched kernel
-  // (padding the last chunk with zero-weight points); here a set of 14 (tetrahedra) or 27 (Hex8)
-  // points, not a multiple of the chunk, against the plain sum over the points of the law,
+  // (padding the last chunk with zero-weight points); here the points of the mass rule (4 on
+  // Tet4, 14 on Tet10, 27 on Hex8 and Wedge6), not a multiple of the chunk (the stiffness rule's
+  // 1, 4, 8 and 6 points), against the plain sum over the points of the law,
   // whose derivatives the central differences above check. Same formula, other summation order
   // and polar iteration: ~1e-14 relative; 1e-11 bounds it with room.
   using E = TestType;
   const auto [X, x] = deformed_element<E>(4);
   PointSet<E> ps;
-  const auto rule = E::template quadrature<5>();
+  const auto rule = E::template quadrature<E::mass_degree>();
   for (int k = 0; k < rule.size; ++k) ps.add(X, rule.points[k], rule.weights[k]);
   if constexpr (QuadraturePoints<E>::size > 1) REQUIRE(ps.size() % QuadraturePoints<E>::size != 0);  // a padded chunk
   auto check = [&]<class M>() {

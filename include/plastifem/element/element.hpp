@@ -4,6 +4,7 @@
 #include <plastifem/element/hex8.hpp>
 #include <plastifem/element/tet10.hpp>
 #include <plastifem/element/tet4.hpp>
+#include <plastifem/element/wedge6.hpp>
 
 #include <algorithm>
 #include <array>
@@ -13,25 +14,68 @@
 
 namespace plastifem {
 
-/// A reference element: nodes, shape functions N(xi) and their gradients dN/dxi, quadrature
-/// rules, boundary faces and edges, and the VTK cell type used for output.
+/// A reference element: everything the library asks of an element type, so that a new element
+/// is one header (Tet4, Tet10, Hex8, Wedge6 are the examples to read):
+/// - nodes: `num_nodes`, the `num_vertices` corners first, polynomial `order`,
+///   `reference_nodes()`, `reference_volume`;
+/// - shape functions N(xi) (`shape`) and their gradients dN/dxi (`gradient`);
+/// - quadrature: `quadrature<Degree>()` and the degrees of full integration
+///   (`stiffness_degree`, `mass_degree`) and of det J (`volume_degree`, exact rest volumes);
+/// - boundary: `num_faces` faces, each of its own kind (`face_shape(f)`, element/face.hpp)
+///   with its nodes in `faces[f]` (outward by the right-hand rule; `nodes_per_face` is the
+///   longest list), and `edges` as node pairs;
+/// - `contains(xi, tol)`: point containment in reference coordinates;
+/// - X-FEM cuts: `sub_tetrahedra` (a split into tetrahedra on the nodes) and the degrees of
+///   the stiffness and mass integrands on a tetrahedral piece (`piece_*_degree`);
+/// - file formats: `vtk_cell_type`, `gmsh_type` (same node order unless the readers say so).
+namespace detail {
+/// The node lists an element trait gives are consistent: one per face, as long as the face's
+/// kind says and no longer than nodes_per_face, sub-tetrahedra on the element's nodes.
 template <class E>
-concept FiniteElement = requires(const Vec3& xi) {
+consteval bool node_lists_consistent() {
+  if (E::faces.size() != static_cast<size_t>(E::num_faces)) return false;
+  for (int f = 0; f < E::num_faces; ++f) {
+    const int n = face_node_count(E::face_shape(f));
+    if (n > E::nodes_per_face || static_cast<int>(E::faces[static_cast<size_t>(f)].size()) != E::nodes_per_face) return false;
+    for (int k = 0; k < n; ++k)
+      if (E::faces[static_cast<size_t>(f)][static_cast<size_t>(k)] < 0 ||
+          E::faces[static_cast<size_t>(f)][static_cast<size_t>(k)] >= E::num_nodes)
+        return false;
+  }
+  for (const auto& t : E::sub_tetrahedra)
+    for (int a : t)
+      if (a < 0 || a >= E::num_nodes) return false;
+  return true;
+}
+}  // namespace detail
+
+template <class E>
+concept FiniteElement = requires(const Vec3& xi, Scalar tol) {
   { E::name } -> std::convertible_to<const char*>;
   { E::num_nodes } -> std::convertible_to<int>;
   { E::num_vertices } -> std::convertible_to<int>;
+  { E::order } -> std::convertible_to<int>;
   { E::vtk_cell_type } -> std::convertible_to<int>;
+  { E::gmsh_type } -> std::convertible_to<int>;
   { E::reference_volume } -> std::convertible_to<Scalar>;
   { E::reference_nodes() } -> std::same_as<Eigen::Matrix<Scalar, 3, E::num_nodes>>;
   { E::shape(xi) } -> std::same_as<Eigen::Matrix<Scalar, E::num_nodes, 1>>;
   { E::gradient(xi) } -> std::same_as<Eigen::Matrix<Scalar, E::num_nodes, 3>>;
-  E::faces[0][E::nodes_per_face - 1];
+  { E::num_faces } -> std::convertible_to<int>;
+  { E::face_shape(0) } -> std::same_as<FaceShape>;
+  E::faces[E::num_faces - 1][E::nodes_per_face - 1];
   E::edges[0][1];
   E::template quadrature<E::stiffness_degree>();
   E::template quadrature<E::mass_degree>();
-};
+  E::template quadrature<E::volume_degree>();
+  { E::contains(xi, tol) } -> std::same_as<bool>;
+  E::sub_tetrahedra[0][3];
+  { E::piece_stiffness_degree } -> std::convertible_to<int>;
+  { E::piece_stiffness_variable_degree } -> std::convertible_to<int>;
+  { E::piece_mass_degree } -> std::convertible_to<int>;
+} && detail::node_lists_consistent<E>();
 
-static_assert(FiniteElement<Tet4> && FiniteElement<Tet10> && FiniteElement<Hex8>);
+static_assert(FiniteElement<Tet4> && FiniteElement<Tet10> && FiniteElement<Hex8> && FiniteElement<Wedge6>);
 
 /// Node coordinates of one element, one node per column.
 template <FiniteElement E>

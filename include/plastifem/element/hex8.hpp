@@ -9,6 +9,7 @@
 //     | /  zeta   | /
 //     |/   | eta  |/            N_i = (1 + xi xi_i)(1 + eta eta_i)(1 + zeta zeta_i) / 8
 //     0----+-- xi-1
+#include <plastifem/element/face.hpp>
 #include <plastifem/element/quadrature.hpp>
 
 #include <array>
@@ -20,11 +21,12 @@ struct Hex8 {
   static constexpr int num_nodes = 8;
   static constexpr int num_vertices = 8;
   static constexpr int order = 1;
-  static constexpr int vtk_cell_type = 12;
+  static constexpr int vtk_cell_type = 12, gmsh_type = 5;
   static constexpr Scalar reference_volume = 8.0;
 
   /// Faces with outward normals by the right-hand rule; Quad4.
-  static constexpr int num_faces = 6, nodes_per_face = 4, vtk_face_type = 9;
+  static constexpr int num_faces = 6, nodes_per_face = 4;
+  static constexpr FaceShape face_shape(int /*face*/) { return FaceShape::quadrilateral4; }
   static constexpr std::array<std::array<int, 4>, 6> faces{
       {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}}};
   static constexpr std::array<std::array<int, 2>, 12> edges{{{0, 1}, {1, 2}, {2, 3}, {3, 0},
@@ -73,6 +75,20 @@ struct Hex8 {
   /// 2 and det J of a distorted (non-parallelepiped) hex degree 2 more. 2x2x2 was exact for
   /// parallelepipeds only, and the thick shells and tubes plasticity targets are not.
   static constexpr int stiffness_degree = 2, mass_degree = 4;
+  /// det J of a trilinear hex has per-variable degree 2: 2x2x2 Gauss gives the exact volume.
+  static constexpr int volume_degree = 2;
+
+  /// Whether reference coordinates lie in the element (within tol).
+  static bool contains(const Vec3& xi, Scalar tol) { return (xi.array().abs() <= 1 + tol).all(); }
+
+  /// Six tetrahedra on the nodes, all around the diagonal 0-6 (X-FEM cuts split these).
+  static constexpr std::array<std::array<int, 4>, 6> sub_tetrahedra{
+      {{0, 1, 2, 6}, {0, 1, 5, 6}, {0, 3, 2, 6}, {0, 3, 7, 6}, {0, 4, 5, 6}, {0, 4, 7, 6}}};
+  /// Degrees of the integrands on a tetrahedral piece of the element, in reference coordinates
+  /// (the X-FEM pieces' rules): linear elasticity's B^T D B det J on an affine hex has degree
+  /// <= 2 in each variable and <= 4 in all (dN/dxi is bilinear in the other two coordinates);
+  /// the mass N_a N_b det J total degree 6.
+  static constexpr int piece_stiffness_degree = 4, piece_stiffness_variable_degree = 2, piece_mass_degree = 6;
 };
 
 }  // namespace plastifem

@@ -11,6 +11,7 @@
 //            1
 //
 // With barycentric L = (1 - x - y - z, x, y, z): corner i: L_i (2 L_i - 1); edge (i, j): 4 L_i L_j.
+#include <plastifem/element/face.hpp>
 #include <plastifem/element/quadrature.hpp>
 
 #include <array>
@@ -22,11 +23,12 @@ struct Tet10 : TetrahedronQuadrature {
   static constexpr int num_nodes = 10;
   static constexpr int num_vertices = 4;
   static constexpr int order = 2;
-  static constexpr int vtk_cell_type = 24;
+  static constexpr int vtk_cell_type = 24, gmsh_type = 11;
   static constexpr Scalar reference_volume = 1.0 / 6.0;
 
   /// Faces with outward normals: three corners, then the mid-edge nodes between them; Tri6.
-  static constexpr int num_faces = 4, nodes_per_face = 6, vtk_face_type = 22;
+  static constexpr int num_faces = 4, nodes_per_face = 6;
+  static constexpr FaceShape face_shape(int /*face*/) { return FaceShape::triangle6; }
   static constexpr std::array<std::array<int, 6>, 4> faces{{{0, 2, 1, 6, 5, 4},
                                                             {0, 1, 3, 4, 8, 7},
                                                             {0, 3, 2, 7, 9, 6},
@@ -76,6 +78,18 @@ struct Tet10 : TetrahedronQuadrature {
 
   /// Full integration: gradients are linear (stiffness degree 2), mass is quadratic^2.
   static constexpr int stiffness_degree = 2, mass_degree = 4;
+  /// det J of a quadratic tet (curved edges) has degree 3.
+  static constexpr int volume_degree = 3;
+
+  /// Whether reference coordinates lie in the element (within tol).
+  static bool contains(const Vec3& xi, Scalar tol) { return (xi.array() >= -tol).all() && xi.sum() <= 1 + tol; }
+
+  /// Eight tetrahedra on the nodes: one at each corner, four around the diagonal 6-8.
+  static constexpr std::array<std::array<int, 4>, 8> sub_tetrahedra{{{0, 4, 6, 7}, {4, 1, 5, 8}, {6, 5, 2, 9}, {7, 8, 9, 3},
+                                                                    {6, 8, 4, 5}, {6, 8, 5, 9}, {6, 8, 9, 7}, {6, 8, 7, 4}}};
+  /// Degrees of the integrands on a tetrahedral piece of an affine Tet10 (the X-FEM pieces'
+  /// rules): stiffness (linear gradients) 2, mass N_a N_b 4.
+  static constexpr int piece_stiffness_degree = 2, piece_stiffness_variable_degree = 2, piece_mass_degree = 4;
 };
 
 }  // namespace plastifem

@@ -381,15 +381,16 @@ class Enrichment {
     DofMap dofs;
   };
 
-  /// The degree of the mass integrand N_a N_b det J on a piece (exact on affine elements but for
-  /// Hex8's enriched dofs: degree 6 needed, 5 tabulated; docs/xfem.md).
-  static constexpr int mass_degree = E::num_nodes == 4 ? 2 : (E::num_nodes == 10 ? 4 : 5);
+  /// The degree of the pieces' mass rule: the element's mass integrand degree on a piece, capped
+  /// at the tabulated tetrahedron rules' 5 (exact on affine elements but for Hex8's enriched
+  /// dofs: degree 6 needed, 5 used; docs/xfem.md).
+  static constexpr int mass_degree = std::min(E::piece_mass_degree, 5);
   static ReferencePoints mass_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<mass_degree>(p); }
   /// A side's stiffness rule: the pieces' rules, compressed (CutOptions::compress_quadrature) to
   /// at most as many points as the integrand of linear elasticity has polynomials, with the same
   /// integrals of them (subdivision.hpp, compress_rule; kept whole if compression fails).
   static ReferencePoints stiffness_points(const std::vector<ReferenceTet>& p, bool compress) {
-    ReferencePoints r = piece_quadrature<piece_stiffness_degree<E>>(p);
+    ReferencePoints r = piece_quadrature<E::piece_stiffness_degree>(p);
     static const std::vector<std::array<int, 3>> exponents = stiffness_exponents<E>();
     if (!compress || r.xi.size() <= exponents.size()) return r;
     ReferencePoints c = compress_rule(r, exponents);

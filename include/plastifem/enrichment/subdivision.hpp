@@ -47,15 +47,7 @@ using ReferenceTet = std::array<Vec3, 4>;
 /// The element's decomposition into reference tetrahedra with element nodes as vertices.
 template <FiniteElement E>
 std::vector<std::array<int, 4>> reference_tetrahedra() {
-  if constexpr (E::num_nodes == 4) {
-    return {{0, 1, 2, 3}};
-  } else if constexpr (E::num_nodes == 10) {
-    return {{0, 4, 6, 7}, {4, 1, 5, 8}, {6, 5, 2, 9}, {7, 8, 9, 3},
-            {6, 8, 4, 5}, {6, 8, 5, 9}, {6, 8, 9, 7}, {6, 8, 7, 4}};
-  } else {
-    static_assert(E::num_nodes == 8, "reference_tetrahedra: Tet4, Tet10 or Hex8");
-    return {{0, 1, 2, 6}, {0, 1, 5, 6}, {0, 3, 2, 6}, {0, 3, 7, 6}, {0, 4, 5, 6}, {0, 4, 7, 6}};
-  }
+  return {E::sub_tetrahedra.begin(), E::sub_tetrahedra.end()};
 }
 
 inline Scalar tet_volume(const ReferenceTet& t) {
@@ -134,20 +126,15 @@ ReferencePoints piece_quadrature(const std::vector<ReferenceTet>& pieces) {
   return r;
 }
 
-/// The total degree of linear elasticity's stiffness integrand on an affine element (see
-/// stiffness_exponents): the degree of the pieces' stiffness rule.
-template <FiniteElement E>
-inline constexpr int piece_stiffness_degree = E::num_nodes == 4 ? 1 : (E::num_nodes == 10 ? 2 : 4);
-
 /// Exponents (a, b, c) of the polynomials x^a y^b z^c (reference coordinates) that linear
-/// elasticity's stiffness integrand B^T D B det J spans on an affine element: Tet4 total degree
-/// <= 1 (the integrand is constant; one point per piece is kept), Tet10 total degree <= 2, Hex8
+/// elasticity's stiffness integrand B^T D B det J spans on an affine element: a + b + c <=
+/// E::piece_stiffness_degree and each <= E::piece_stiffness_variable_degree. Tet4: total degree
+/// <= 1 (the integrand is constant; one point per piece is kept), Tet10 and Wedge6 <= 2, Hex8
 /// a, b, c <= 2 with a + b + c <= 4 (dN/dxi is bilinear in the other two coordinates, so a
 /// product of two has degree <= 2 in each and <= 4 in all): 4, 10 and 23 polynomials.
 template <FiniteElement E>
 std::vector<std::array<int, 3>> stiffness_exponents() {
-  constexpr int total = piece_stiffness_degree<E>;
-  constexpr int each = E::num_nodes == 8 ? 2 : total;
+  constexpr int total = E::piece_stiffness_degree, each = E::piece_stiffness_variable_degree;
   std::vector<std::array<int, 3>> e;
   for (int a = 0; a <= each; ++a)
     for (int b = 0; b <= each; ++b)

@@ -11,6 +11,7 @@
 // The generators are function templates (of an unused parameter) only so that a file compiles
 // the ones it calls: each instantiates its element type's Mesh, whose validation is most of the
 // 2 s this header cost every file that included it when they were plain inline functions.
+#include <plastifem/embedding/triangle_surface.hpp>
 #include <plastifem/mesh/selection.hpp>
 
 #include <numbers>
@@ -98,6 +99,25 @@ Mesh<Hex8> box_hex8(const BoxSpec& b) {
         cells.push_back({c[0], c[1], c[3], c[2], c[4], c[5], c[7], c[6]});
       }
   Mesh<Hex8> mesh(detail::box_nodes(b), std::move(cells));
+  detail::name_box_sides(mesh, b);
+  return mesh;
+}
+
+/// Wedge6 grid: each cell split into 2 prisms along the diagonal of its z faces from (0,0) to
+/// (1,1), the same in every cell, so neighbours' faces match.
+template <class = void>
+Mesh<Wedge6> box_wedge6(const BoxSpec& b) {
+  detail::check_box(b);
+  std::vector<Mesh<Wedge6>::Connectivity> prisms;
+  prisms.reserve(static_cast<size_t>(b.nx) * b.ny * b.nz * 2);
+  for (int k = 0; k < b.nz; ++k)
+    for (int j = 0; j < b.ny; ++j)
+      for (int i = 0; i < b.nx; ++i) {
+        const auto c = detail::cell_corners(b, i, j, k);  // local bits di + 2 dj + 4 dk
+        prisms.push_back({c[0], c[1], c[3], c[4], c[5], c[7]});  // triangles counter-clockwise from +z
+        prisms.push_back({c[0], c[3], c[2], c[4], c[7], c[6]});
+      }
+  Mesh<Wedge6> mesh(detail::box_nodes(b), std::move(prisms));
   detail::name_box_sides(mesh, b);
   return mesh;
 }
@@ -197,12 +217,17 @@ Mesh<Tet10> promote_to_tet10(const Mesh<Tet4>& tet4) {
   return mesh;
 }
 
-/// A box meshed as the bar scenes mesh it: Hex8 grid, Kuhn-split Tet4, or its Tet10.
+/// A box meshed as the bar scenes mesh it: Hex8 grid, Kuhn-split Tet4, its Tet10, or prisms.
+/// (A new element type adds its box here.)
 template <FiniteElement E>
 Mesh<E> bar_mesh(const BoxSpec& b) {
   if constexpr (std::is_same_v<E, Hex8>) return box_hex8(b);
   else if constexpr (std::is_same_v<E, Tet4>) return box_tet4_kuhn(b);
-  else return promote_to_tet10(box_tet4_kuhn(b));
+  else if constexpr (std::is_same_v<E, Wedge6>) return box_wedge6(b);
+  else {
+    static_assert(std::is_same_v<E, Tet10>, "bar_mesh: no box generator for this element type");
+    return promote_to_tet10(box_tet4_kuhn(b));
+  }
 }
 
 /// The bar scenes of SCENES.md: nx x ny x nz unit cubes.
@@ -278,6 +303,50 @@ Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int layers) 
   return mesh;
 }
 
+/// Thick shell of prisms: the triangulated surface offset along its (area-weighted, averaged)
+/// vertex normals by `thickness` in `layers` Wedge6 layers; negative thickness offsets against
+/// the normals. Membranes and capsules come as triangle surfaces. Node and face sets "bottom"
+/// (the surface itself) and "top" (its offset), as thick_shell_hex8.
+template <class = void>
+Mesh<Wedge6> thick_shell_wedge6(const TriangleSurface& s, Scalar thickness, int layers) {
+  if (layers < 1) fail<InvalidArgument>("thick shell needs at least one layer, got {}", layers);
+  if (!(std::abs(thickness) > 0) || !std::isfinite(thickness))
+    fail<InvalidArgument>("thick shell thickness must be finite and non-zero, got {}", thickness);
+  check_surface(s, "thick shell surface");
+  const Index n = s.num_vertices();
+  Eigen::Matrix3Xd normal;
+  vertex_normals(s, s.vertices, normal);
+  for (Index v = 0; v < n; ++v)
+    if (!(normal.col(v).norm() > 0)) fail<MeshError>("surface vertex {} belongs to no triangle or has no defined normal", v);
+  Eigen::Matrix3Xd X(3, n * (layers + 1));
+  for (int l = 0; l <= layers; ++l) X.middleCols(l * n, n) = s.vertices + normal * (thickness * l / layers);
+  std::vector<Mesh<Wedge6>::Connectivity> prisms;
+  prisms.reserve(s.triangles.size() * static_cast<size_t>(layers));
+  for (int l = 0; l < layers; ++l)
+    for (const Triangle& t : s.triangles) {
+      const Index lo = l * n, hi = (l + 1) * n;
+      if (thickness > 0)
+        prisms.push_back({t[0] + lo, t[1] + lo, t[2] + lo, t[0] + hi, t[1] + hi, t[2] + hi});
+      else  // offset against the normal: the offset layer is the prism's bottom
+        prisms.push_back({t[0] + hi, t[1] + hi, t[2] + hi, t[0] + lo, t[1] + lo, t[2] + lo});
+    }
+  Mesh<Wedge6> mesh(std::move(X), std::move(prisms));
+  std::vector<Index> bottom(static_cast<size_t>(n)), top(static_cast<size_t>(n));
+  for (Index v = 0; v < n; ++v) bottom[static_cast<size_t>(v)] = v, top[static_cast<size_t>(v)] = layers * n + v;
+  const int bottom_face = thickness > 0 ? 0 : 1, top_face = 1 - bottom_face;  // Wedge6 faces 0 / 1
+  std::vector<FaceRef> fb, ft;
+  const Index nt = s.num_triangles();
+  for (Index t = 0; t < nt; ++t) {
+    fb.push_back({t, bottom_face});
+    ft.push_back({(layers - 1) * nt + t, top_face});
+  }
+  mesh.add_node_set("bottom", std::move(bottom));
+  mesh.add_node_set("top", std::move(top));
+  mesh.add_face_set("bottom", std::move(fb));
+  mesh.add_face_set("top", std::move(ft));
+  return mesh;
+}
+
 /// Cylindrical tube along x (a vessel): inner radius r_in, outer r_out, length L; n_circ cells
 /// around, n_axial along, n_radial through the wall. Built as the thick shell of the inner
 /// cylinder (whose vertex normals are exactly radial, so the outer radius is exact).
@@ -335,6 +404,10 @@ extern template Mesh<Hex8> bar_mesh<Hex8>(const BoxSpec&);
 extern template Mesh<Tet4> bar_mesh<Tet4>(int, int, int);
 extern template Mesh<Tet10> bar_mesh<Tet10>(int, int, int);
 extern template Mesh<Hex8> bar_mesh<Hex8>(int, int, int);
+extern template Mesh<Wedge6> box_wedge6<void>(const BoxSpec&);
+extern template Mesh<Wedge6> thick_shell_wedge6<void>(const TriangleSurface&, Scalar, int);
+extern template Mesh<Wedge6> bar_mesh<Wedge6>(const BoxSpec&);
+extern template Mesh<Wedge6> bar_mesh<Wedge6>(int, int, int);
 #endif
 
 }  // namespace plastifem

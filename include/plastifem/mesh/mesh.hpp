@@ -26,6 +26,18 @@ struct FaceRef {
   friend bool operator==(const FaceRef&, const FaceRef&) = default;
 };
 
+/// Global node ids of one element face: as many as its kind has (E::face_shape), corners
+/// first, in the element's local face order (outward normal).
+template <FiniteElement E>
+struct FaceNodes {
+  std::array<Index, E::nodes_per_face> ids{};
+  FaceShape shape{};
+  int size() const { return face_node_count(shape); }
+  Index operator[](int k) const { return ids[static_cast<size_t>(k)]; }
+  const Index* begin() const { return ids.data(); }
+  const Index* end() const { return ids.data() + size(); }
+};
+
 /// What validation found that is not an error.
 struct MeshReport {
   std::vector<Index> unused_nodes;  ///< nodes no element refers to (they carry no stiffness)
@@ -69,10 +81,11 @@ class Mesh {
   }
 
   /// Global node ids of a face, in the element's local face order (outward normal).
-  std::array<Index, E::nodes_per_face> face_nodes(FaceRef f) const {
-    std::array<Index, E::nodes_per_face> ids;
-    for (int k = 0; k < E::nodes_per_face; ++k) ids[k] = elements_[f.element][E::faces[f.face][k]];
-    return ids;
+  FaceNodes<E> face_nodes(FaceRef f) const {
+    FaceNodes<E> n;
+    n.shape = E::face_shape(f.face);
+    for (int k = 0; k < n.size(); ++k) n.ids[static_cast<size_t>(k)] = elements_[f.element][E::faces[f.face][k]];
+    return n;
   }
 
   // --- element weights (a cage's partly filled cells: embedding/cage.hpp) -----------------
@@ -215,6 +228,7 @@ void Mesh<E>::check_duplicates() const {
 extern template class Mesh<Tet4>;
 extern template class Mesh<Tet10>;
 extern template class Mesh<Hex8>;
+extern template class Mesh<Wedge6>;
 #endif
 
 /// The mesh without the nodes no element refers to (report().unused_nodes: a CAD file's geometry

@@ -32,7 +32,12 @@ std::vector<Index> select_nodes_in_box(const Mesh<E>& mesh, const Vec3& lo, cons
 /// element face. Order: by element, then local face.
 template <FiniteElement E>
 std::vector<FaceRef> boundary_faces(const Mesh<E>& mesh) {
-  constexpr int nc = E::nodes_per_face == 6 ? 3 : E::nodes_per_face;  // corners of a face
+  // A face's sorted corners (padded with -1 where faces of several kinds have fewer).
+  constexpr int nc = [] {
+    int most = 0;
+    for (int f = 0; f < E::num_faces; ++f) most = std::max(most, face_corners(E::face_shape(f)));
+    return most;
+  }();
   using Key = std::array<Index, nc>;
   struct KeyHash {
     size_t operator()(const Key& k) const {
@@ -46,7 +51,8 @@ std::vector<FaceRef> boundary_faces(const Mesh<E>& mesh) {
   auto key = [&](FaceRef f) {
     const auto ids = mesh.face_nodes(f);
     Key k;
-    std::copy_n(ids.begin(), nc, k.begin());
+    k.fill(-1);
+    std::copy_n(ids.begin(), face_corners(ids.shape), k.begin());
     std::sort(k.begin(), k.end());
     return k;
   };
@@ -95,12 +101,13 @@ std::vector<Index> nodes_of_faces(const Mesh<E>& mesh, const std::vector<FaceRef
   return ids;
 }
 
-/// The boundary surface as a polygon soup over the mesh's own nodes (Tri3, Tri6 or Quad4 per
-/// E::vtk_face_type), with outward orientation. For output and surface loads.
+/// The boundary surface as a polygon soup over the mesh's own nodes (each face's kind in its
+/// FaceNodes: face_vtk_type gives its VTK cell type), with outward orientation. For output and
+/// surface loads.
 template <FiniteElement E>
 struct Surface {
   std::vector<FaceRef> faces;
-  std::vector<std::array<Index, E::nodes_per_face>> connectivity;
+  std::vector<FaceNodes<E>> connectivity;
 };
 
 template <FiniteElement E>
@@ -121,8 +128,7 @@ struct PointLocation {
 /// Whether reference coordinates lie in the reference element (within tol).
 template <FiniteElement E>
 bool in_reference_element(const Vec3& xi, Scalar tol = 1e-10) {
-  if constexpr (E::num_vertices == 8) return (xi.array().abs() <= 1 + tol).all();
-  else return (xi.array() >= -tol).all() && xi.sum() <= 1 + tol;
+  return E::contains(xi, tol);
 }
 
 /// X's reference coordinates in the element with rest nodes Xe, if it lies in it (within tol

@@ -305,11 +305,11 @@ Mat3 times(const ElementNodes<E>& x, const ShapeGradients<E>& G) {
   return F;
 }
 
-/// Volume of a rest shape, exact for the element's own geometry with the fewest points: det J
-/// of a trilinear hex has per-variable degree 2 (2x2x2 Gauss), of a quadratic tet degree 3.
+/// Volume of a rest shape, exact for the element's own geometry with the fewest points (the
+/// rule of det J's degree, E::volume_degree).
 template <FiniteElement E>
 Scalar rest_volume(const ElementNodes<E>& X) {
-  constexpr int degree = E::num_vertices == 8 ? 2 : 3 * (E::order - 1);
+  constexpr int degree = E::volume_degree;
   const auto q = E::template quadrature<degree>();
   const auto& dN = quadrature_gradients<E, degree>();
   Scalar v = 0;

@@ -132,35 +132,38 @@ class Loads {
   }
 
   /// Calls f(xi, dxi/ds, dxi/dt, weight) at the quadrature points of local face `face`, mapped
-  /// into the reference element. Tri faces: 3-point degree-2 rule (exact for Tet10's quadratic
-  /// N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a times a bilinear dA).
+  /// into the reference element, by the face's kind. Tri faces: 3-point degree-2 rule (exact
+  /// for Tet10's quadratic N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a
+  /// times a bilinear dA).
   template <class F>
   static void for_each_face_point(int face, F&& f) {
     const auto Xref = E::reference_nodes();
     const auto& fn = E::faces[face];
-    if constexpr (E::nodes_per_face == 4) {
-      const Scalar g = 0.57735026918962576451;
-      for (Scalar s : {-g, g})
-        for (Scalar t : {-g, g}) {
-          // Bilinear map of the reference face corners (flat faces of the reference cube).
-          const Scalar Ns[4] = {(1 - s) * (1 - t) / 4, (1 + s) * (1 - t) / 4, (1 + s) * (1 + t) / 4,
-                                (1 - s) * (1 + t) / 4};
-          const Scalar dNs[4] = {-(1 - t) / 4, (1 - t) / 4, (1 + t) / 4, -(1 + t) / 4};
-          const Scalar dNt[4] = {-(1 - s) / 4, -(1 + s) / 4, (1 + s) / 4, (1 - s) / 4};
-          Vec3 xi = Vec3::Zero(), ds = Vec3::Zero(), dt = Vec3::Zero();
-          for (int k = 0; k < 4; ++k) {
-            xi += Ns[k] * Xref.col(fn[k]);
-            ds += dNs[k] * Xref.col(fn[k]);
-            dt += dNt[k] * Xref.col(fn[k]);
+    if constexpr (E::nodes_per_face >= 4) {  // an element with quadrilateral faces
+      if (face_corners(E::face_shape(face)) == 4) {
+        const Scalar g = 0.57735026918962576451;
+        for (Scalar s : {-g, g})
+          for (Scalar t : {-g, g}) {
+            // Bilinear map of the reference face corners (flat faces of the reference cube).
+            const Scalar Ns[4] = {(1 - s) * (1 - t) / 4, (1 + s) * (1 - t) / 4, (1 + s) * (1 + t) / 4,
+                                  (1 - s) * (1 + t) / 4};
+            const Scalar dNs[4] = {-(1 - t) / 4, (1 - t) / 4, (1 + t) / 4, -(1 + t) / 4};
+            const Scalar dNt[4] = {-(1 - s) / 4, -(1 + s) / 4, (1 + s) / 4, (1 - s) / 4};
+            Vec3 xi = Vec3::Zero(), ds = Vec3::Zero(), dt = Vec3::Zero();
+            for (int k = 0; k < 4; ++k) {
+              xi += Ns[k] * Xref.col(fn[k]);
+              ds += dNs[k] * Xref.col(fn[k]);
+              dt += dNt[k] * Xref.col(fn[k]);
+            }
+            f(xi, ds, dt, 1.0);
           }
-          f(xi, ds, dt, 1.0);
-        }
-    } else {
-      // Strang-Fix 3-point rule on the unit triangle (area 1/2), degree 2.
-      const Scalar pts[3][2] = {{1.0 / 6, 1.0 / 6}, {2.0 / 3, 1.0 / 6}, {1.0 / 6, 2.0 / 3}};
-      const Vec3 p0 = Xref.col(fn[0]), e1 = Xref.col(fn[1]) - p0, e2 = Xref.col(fn[2]) - p0;
-      for (const auto& p : pts) f(Vec3(p0 + p[0] * e1 + p[1] * e2), e1, e2, 1.0 / 6);
+        return;
+      }
     }
+    // Triangles: Strang-Fix 3-point rule on the unit triangle (area 1/2), degree 2.
+    const Scalar pts[3][2] = {{1.0 / 6, 1.0 / 6}, {2.0 / 3, 1.0 / 6}, {1.0 / 6, 2.0 / 3}};
+    const Vec3 p0 = Xref.col(fn[0]), e1 = Xref.col(fn[1]) - p0, e2 = Xref.col(fn[2]) - p0;
+    for (const auto& p : pts) f(Vec3(p0 + p[0] * e1 + p[1] * e2), e1, e2, 1.0 / 6);
   }
 
  private:

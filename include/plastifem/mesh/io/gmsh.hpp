@@ -8,7 +8,7 @@
 //   - Nodes: renumbered 0..n-1 in the order of the file, whatever their tags (4.1 tags may be
 //     sparse and spread over entity blocks). Nodes no volume element uses are KEPT by default, so
 //     that every node of the file has an index; the mesh lists them in report().unused_nodes.
-//   - Volume elements: all must be of E's type (Tet4: Gmsh type 4, Tet10: 11, Hex8: 5); another
+//   - Volume elements: all must be of E's type (E::gmsh_type: Tet4 4, Tet10 11, Hex8 5, Wedge6 6); another
 //     volume type is an error, lower-dimensional elements are only used for physical groups.
 //     Gmsh's Tet10 numbers its last two mid-edge nodes the other way round from VTK (Gmsh node 8
 //     is on edge (2,3), node 9 on edge (1,3)); they are swapped into plastifem's (VTK's) order.
@@ -69,14 +69,12 @@ inline int gmsh_surface_corners(int type) {
   }
 }
 
+/// Whether some face of E has `corners` corners.
 template <FiniteElement E>
-constexpr int gmsh_type_of() {
-  if constexpr (E::vtk_cell_type == Tet4::vtk_cell_type) return 4;
-  else if constexpr (E::vtk_cell_type == Tet10::vtk_cell_type) return 11;
-  else {
-    static_assert(E::vtk_cell_type == Hex8::vtk_cell_type, "no Gmsh element type known for this element");
-    return 5;
-  }
+constexpr bool has_face_with_corners(int corners) {
+  for (int f = 0; f < E::num_faces; ++f)
+    if (face_corners(E::face_shape(f)) == corners) return true;
+  return false;
 }
 
 /// The contents of a .msh file, before it becomes a Mesh.
@@ -385,7 +383,7 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
   detail::GmshParser parser(file_name, std::move(text));
   const detail::GmshFile f = parser.parse();
   using Element = detail::GmshFile::Element;
-  constexpr int want = detail::gmsh_type_of<E>();
+  constexpr int want = E::gmsh_type;
 
   auto node = [&](const Element& el, size_t k) -> Index {
     const long long tag = f.node_tags[el.first_node + k];
@@ -416,7 +414,7 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
     }
     Connectivity c;
     for (int k = 0; k < E::num_nodes; ++k) c[static_cast<size_t>(k)] = node(el, static_cast<size_t>(k));
-    if constexpr (want == 11) std::swap(c[8], c[9]);  // Gmsh: 8 on edge (2,3), 9 on (1,3); VTK: the reverse
+    if constexpr (std::is_same_v<E, Tet10>) std::swap(c[8], c[9]);  // Gmsh: 8 on edge (2,3), 9 on (1,3); VTK: the reverse
     Connectivity sorted = c;
     std::sort(sorted.begin(), sorted.end());
     const auto by_tag = cell_of_tag.find(el.tag);
@@ -450,13 +448,12 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
       for (int phys : f.group_lists[static_cast<size_t>(el.groups)]) groups[{el.dim, phys}].push_back(&el);
   // Boundary faces by their sorted corner nodes (padded with -1 to four).
   using Key = std::array<Index, 4>;
-  constexpr int corners = E::nodes_per_face == 6 ? 3 : E::nodes_per_face;
   std::map<Key, FaceRef> faces;
   if (std::any_of(groups.begin(), groups.end(), [](const auto& g) { return g.first.first == 2; }))
     for (const FaceRef& fr : boundary_faces(mesh)) {
       const auto ids = mesh.face_nodes(fr);
       Key k{-1, -1, -1, -1};
-      std::copy_n(ids.begin(), corners, k.begin());
+      std::copy_n(ids.begin(), face_corners(ids.shape), k.begin());
       std::sort(k.begin(), k.end());
       faces.emplace(k, fr);
     }
@@ -485,9 +482,10 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
         parser.fail_at(el->line, fmt::format("surface element {} of physical group '{}' matches no boundary face of "
                                              "the {} mesh{}",
                                              el->tag, name, E::name,
-                                             nc != corners ? fmt::format(" (it has {} corners, a {} face has {})", nc,
-                                                                         E::name, corners)
-                                                           : std::string()));
+                                             !detail::has_face_with_corners<E>(nc)
+                                                 ? fmt::format(" (it has {} corners, a {} face has {})", nc, E::name,
+                                                               face_corners(E::face_shape(0)))
+                                                 : std::string()));
       fs.push_back(it->second);
     }
   }

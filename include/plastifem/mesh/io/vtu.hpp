@@ -248,6 +248,7 @@ inline const char* element_of_vtk_type(std::int64_t type) {
     case Tet4::vtk_cell_type: return Tet4::name;
     case Tet10::vtk_cell_type: return Tet10::name;
     case Hex8::vtk_cell_type: return Hex8::name;
+    case Wedge6::vtk_cell_type: return Wedge6::name;
     default: return nullptr;
   }
 }

@@ -1,0 +1,136 @@
+#pragma once
+// Linear prism (wedge), 6 nodes: a triangle times a segment. The element of thick shells made
+// from triangulated surfaces (membranes, capsules: mesh/generators.hpp, thick_shell_wedge6).
+//
+//           5                    reference nodes (xi, eta, zeta):
+//          /|\                     0 (0,0,-1)  1 (1,0,-1)  2 (0,1,-1)
+//         / | \                    3 (0,0, 1)  4 (1,0, 1)  5 (0,1, 1)
+//        3-----4                 the triangle 0-1-2 counter-clockwise seen from the top (3-4-5).
+//        |  2  |
+//        | / \ |                 VTK_WEDGE (13) and Gmsh type 6 ("6-node prism"): same numbering
+//        |/   \|                 (VTK's shape functions in vtkWedge.cxx put 3-4-5 on the side
+//        0-----1                 the right-hand normal of 0-1-2 points to, as here).
+//
+// With L = (1 - xi - eta, xi, eta): N_i = L_i (1 - zeta) / 2, N_{3+i} = L_i (1 + zeta) / 2.
+#include <plastifem/element/face.hpp>
+#include <plastifem/element/quadrature.hpp>
+
+#include <algorithm>
+#include <array>
+
+namespace plastifem {
+
+/// A rule on the prism {x, y >= 0, x + y <= 1} x [-1, 1] (volume 1) of degree `Degree`: exact
+/// for every x^a y^b z^c with a + b <= Degree and c <= Degree (tests/test_elements.cpp checks
+/// it, and that it fails one degree above). A triangle rule of total degree Degree times the
+/// Gauss-Legendre rule of Degree in z. The triangle rules: the centroid (degree 1), the 3-point
+/// rule at (1/6, 1/6) and its permutations (degree 2), and above the collapsed 3 x 3 Gauss rule
+/// (Stroud's conical product: x = u, y = v (1 - u), dA = (1 - u) du dv; a degree-d polynomial
+/// becomes degree d + 1 in u and d in v, exact to d = 4 with 3 points each way). Up to degree 4.
+template <int Degree>
+auto prism_rule() {
+  static_assert(Degree >= 0 && Degree <= 4, "prism rules are tabulated up to degree 4");
+  constexpr int n_line = (Degree + 2) / 2;
+  const auto line = detail::gauss_legendre_1d<n_line>();
+  std::array<Scalar, 9> tx{}, ty{}, tw{};
+  int n_tri = 0;
+  if constexpr (Degree <= 1) {
+    tx[0] = ty[0] = 1.0 / 3.0, tw[0] = 0.5, n_tri = 1;
+  } else if constexpr (Degree == 2) {
+    const Scalar p[3][2] = {{1.0 / 6, 1.0 / 6}, {2.0 / 3, 1.0 / 6}, {1.0 / 6, 2.0 / 3}};
+    for (int k = 0; k < 3; ++k) tx[k] = p[k][0], ty[k] = p[k][1], tw[k] = 1.0 / 6;
+    n_tri = 3;
+  } else {
+    const auto g = detail::gauss_legendre_1d<3>();
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b, ++n_tri) {
+        const Scalar u = (1 + g[a][0]) / 2, v = (1 + g[b][0]) / 2;
+        tx[n_tri] = u, ty[n_tri] = v * (1 - u), tw[n_tri] = g[a][1] * g[b][1] / 4 * (1 - u);
+      }
+  }
+  constexpr int N = (Degree <= 1 ? 1 : Degree == 2 ? 3 : 9) * n_line;
+  Quadrature<N> q{};
+  int k = 0;
+  for (int c = 0; c < n_line; ++c)
+    for (int t = 0; t < n_tri; ++t, ++k) {
+      q.points[k] = Vec3(tx[t], ty[t], line[c][0]);
+      q.weights[k] = tw[t] * line[c][1];
+    }
+  q.degree = std::max(Degree, 1);
+  return q;
+}
+
+struct Wedge6 {
+  static constexpr const char* name = "Wedge6";
+  static constexpr int num_nodes = 6;
+  static constexpr int num_vertices = 6;
+  static constexpr int order = 1;
+  static constexpr int vtk_cell_type = 13, gmsh_type = 6;
+  static constexpr Scalar reference_volume = 1.0;  // triangle 1/2 times height 2
+
+  /// Faces with outward normals by the right-hand rule: the two triangles (Tri3, the fourth
+  /// entry unused), then the three quadrilaterals (Quad4).
+  static constexpr int num_faces = 5, nodes_per_face = 4;
+  static constexpr std::array<std::array<int, 4>, 5> faces{
+      {{0, 2, 1, -1}, {3, 4, 5, -1}, {0, 1, 4, 3}, {1, 2, 5, 4}, {2, 0, 3, 5}}};
+  static constexpr FaceShape face_shape(int face) { return face < 2 ? FaceShape::triangle3 : FaceShape::quadrilateral4; }
+  static constexpr std::array<std::array<int, 2>, 9> edges{
+      {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5}, {5, 3}, {0, 3}, {1, 4}, {2, 5}}};
+
+  using ShapeVector = Eigen::Matrix<Scalar, num_nodes, 1>;
+  using ShapeGradient = Eigen::Matrix<Scalar, num_nodes, 3>;
+  using NodeMatrix = Eigen::Matrix<Scalar, 3, num_nodes>;
+
+  static NodeMatrix reference_nodes() {
+    NodeMatrix X;
+    X << 0, 1, 0, 0, 1, 0,
+         0, 0, 1, 0, 0, 1,
+        -1, -1, -1, 1, 1, 1;
+    return X;
+  }
+
+  static ShapeVector shape(const Vec3& p) {
+    const Scalar L[3] = {1 - p.x() - p.y(), p.x(), p.y()};
+    const Scalar lo = (1 - p.z()) / 2, hi = (1 + p.z()) / 2;
+    ShapeVector N;
+    for (int i = 0; i < 3; ++i) N[i] = L[i] * lo, N[3 + i] = L[i] * hi;
+    return N;
+  }
+
+  static ShapeGradient gradient(const Vec3& p) {
+    const Scalar L[3] = {1 - p.x() - p.y(), p.x(), p.y()};
+    const Scalar dL[3][2] = {{-1, -1}, {1, 0}, {0, 1}};  // dL_i / d(xi, eta)
+    const Scalar lo = (1 - p.z()) / 2, hi = (1 + p.z()) / 2;
+    ShapeGradient G;
+    for (int i = 0; i < 3; ++i) {
+      G(i, 0) = dL[i][0] * lo, G(i, 1) = dL[i][1] * lo, G(i, 2) = -L[i] / 2;
+      G(3 + i, 0) = dL[i][0] * hi, G(3 + i, 1) = dL[i][1] * hi, G(3 + i, 2) = L[i] / 2;
+    }
+    return G;
+  }
+
+  /// The prism rule of `Degree`: total degree in (xi, eta), degree in zeta (prism_rule above).
+  template <int Degree>
+  static auto quadrature() {
+    return prism_rule<Degree>();
+  }
+  /// Full integration. Stiffness: the textbook 3 x 2 = 6-point rule (degree 2: B^T D B of a
+  /// right prism has degree 2 in (xi, eta) and in zeta). Mass: N_a N_b det J of a distorted
+  /// prism has degree 3 in (xi, eta) and 4 in zeta: 9 x 3 = 27 points. Volume: det J has degree
+  /// 1 in (xi, eta) and 2 in zeta (the 3 x 2 rule).
+  static constexpr int stiffness_degree = 2, mass_degree = 4, volume_degree = 2;
+
+  /// Whether reference coordinates lie in the element (within tol).
+  static bool contains(const Vec3& xi, Scalar tol) {
+    return xi.x() >= -tol && xi.y() >= -tol && xi.x() + xi.y() <= 1 + tol && std::abs(xi.z()) <= 1 + tol;
+  }
+
+  /// Three tetrahedra on the nodes (each of volume 1/3 in reference coordinates).
+  static constexpr std::array<std::array<int, 4>, 3> sub_tetrahedra{{{0, 1, 2, 3}, {1, 2, 3, 4}, {2, 3, 4, 5}}};
+  /// Degrees of the integrands on a tetrahedral piece of a right prism (the X-FEM pieces'
+  /// rules): each dN/dxi has total degree 1 (linear in zeta, or in (xi, eta)), so the stiffness
+  /// integrand has degree 2 in all and in each variable; the mass N_a N_b total degree 4.
+  static constexpr int piece_stiffness_degree = 2, piece_stiffness_variable_degree = 2, piece_mass_degree = 4;
+};
+
+}  // namespace plastifem
