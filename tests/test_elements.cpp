@@ -216,13 +216,13 @@ TEST_CASE("volumes of non-affinely distorted elements match closed form", "[elem
     REQUIRE(element_volume<Hex8>(X) == Approx(1 + t / 4).epsilon(1e-14));
   }
   SECTION("Wedge6: a prism with one top corner raised") {
-    // Unit right prism over the triangle (0,0), (1,0), (0,1) with node 4 raised to (1, 0, 1 + t):
+    // Unit right prism over the triangle (0,0), (0,1), (1,0) with node 5 raised to (1, 0, 1 + t):
     // the prism's map gives z = w (1 + t x) for w in [0, 1], so V = int_T (1 + t x) dA = 1/2 + t/6.
     const Scalar t = 0.6;
     ElementNodes<Wedge6> X;
-    X << 0, 1, 0, 0, 1, 0,
-         0, 0, 1, 0, 0, 1,
-         0, 0, 0, 1, 1 + t, 1;
+    X << 0, 0, 1, 0, 0, 1,
+         0, 1, 0, 0, 1, 0,
+         0, 0, 0, 1, 1, 1 + t;
     REQUIRE(element_volume<Wedge6>(X) == Approx(0.5 + t / 6).epsilon(1e-14));
   }
   SECTION("Tet10: a curved edge") {
@@ -281,9 +281,10 @@ TEMPLATE_TEST_CASE("element traits: containment, faces, sub-tetrahedra and volum
     REQUIRE(n_total.norm() < 1e-14);
     REQUIRE(volume == Approx(E::reference_volume).epsilon(1e-14));
   }
-  SECTION("sub-tetrahedra fill the reference element") {
-    // Each inside (its vertices are nodes of the convex reference element) and non-degenerate;
-    // volumes adding up to the element's leaves no room for overlap.
+  SECTION("sub-tetrahedra partition the reference element") {
+    // Non-degenerate, their volumes add up to the element's, and every random point of the
+    // element lies in exactly one of them (barycentric coordinates; a random point falls on an
+    // inner face with probability 0).
     Scalar v = 0;
     for (const auto& t : E::sub_tetrahedra) {
       const Scalar vt = (Xref.col(t[1]) - Xref.col(t[0])).cross(Xref.col(t[2]) - Xref.col(t[0])).dot(Xref.col(t[3]) - Xref.col(t[0])) / 6;
@@ -291,6 +292,18 @@ TEMPLATE_TEST_CASE("element traits: containment, faces, sub-tetrahedra and volum
       v += std::abs(vt);
     }
     REQUIRE(v == Approx(E::reference_volume).epsilon(1e-14));
+    std::mt19937 rng(5);
+    for (int k = 0; k < 200; ++k) {
+      const Vec3 p = random_reference_point<E>(rng);
+      int inside = 0;
+      for (const auto& t : E::sub_tetrahedra) {
+        Mat3 A;
+        A << Xref.col(t[1]) - Xref.col(t[0]), Xref.col(t[2]) - Xref.col(t[0]), Xref.col(t[3]) - Xref.col(t[0]);
+        const Vec3 b = A.inverse() * (p - Xref.col(t[0]));
+        if ((b.array() >= -1e-12).all() && b.sum() <= 1 + 1e-12) ++inside;
+      }
+      REQUIRE(inside == 1);
+    }
   }
   SECTION("volume_degree integrates det J of a distorted element exactly, one degree less does not") {
     std::mt19937 rng(11);

@@ -194,9 +194,9 @@ TEST_CASE("non-negative least squares: exact fits, and the optimality conditions
 }
 
 TEST_CASE("compressed cut-element rule: few positive points with the full rule's moments", "[enrichment]") {
-  // 60 random planes through the reference Hex8 and Tet10 (Tet4 keeps its rule: one point per
-  // piece is already below its 4 polynomials). Each side's compressed rule must (1) have at
-  // most 23 (Hex8) / 10 (Tet10) points, (2) positive weights, (3) points of the full rule, and
+  // 60 random planes through the reference Hex8, Tet10 and Wedge6 (Tet4 keeps its rule: one
+  // point per piece is already below its 4 polynomials). Each side's compressed rule must (1)
+  // have at most 23 (Hex8) / 10 (Tet10, Wedge6) points, (2) positive weights, (3) points of the full rule, and
   // (4) the full rule's integral of every polynomial of the space to 1e-13 of the side's volume
   // (reference monomials are at most 1 in size on the element; NNLS fits to ~1e-15).
   auto check = [&]<class E>(int degree_points) {
@@ -214,7 +214,7 @@ TEST_CASE("compressed cut-element rule: few positive points with the full rule's
       for (int a = 0; a < E::num_nodes; ++a) phi[a] = normal.dot(Vec3(Xref.col(a)) - centre);
       for (const auto& pieces : split_element<E>(phi)) {
         if (pieces.empty()) continue;
-        const ReferencePoints full = piece_quadrature<E::num_nodes == 8 ? 4 : 2>(pieces);
+        const ReferencePoints full = piece_quadrature<E::piece_stiffness_degree>(pieces);
         if (full.xi.size() <= exponents.size()) continue;
         const ReferencePoints c = compress_rule(full, exponents);
         INFO(E::name << ", trial " << trial << ": " << full.xi.size() << " points -> " << c.xi.size());
@@ -239,6 +239,7 @@ TEST_CASE("compressed cut-element rule: few positive points with the full rule's
   };
   check.template operator()<Hex8>(23);
   check.template operator()<Tet10>(10);
+  check.template operator()<Wedge6>(10);
 }
 
 TEST_CASE("level sets: plane, patch and closed surface, with the right sign everywhere", "[enrichment]") {

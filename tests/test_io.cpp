@@ -632,6 +632,21 @@ TEST_CASE("legacy vtk: classic CELLS layout with point and cell data", "[io][vtk
   CHECK(d.cell_data.at("stress").col(5) == (Eigen::VectorXd(6) << 1, 2, 3, 4, 5, 6).finished());
 }
 
+TEST_CASE("legacy vtk: a wedge in VTK's documented order reads as a valid Wedge6, Gmsh's order as inverted", "[io][vtk]") {
+  // VTK_WEDGE: the right-hand normal of the triangle 0-1-2 points away from 3-4-5 (VTK's file
+  // format documentation); ParaView measures such a cell's volume as positive. The same file
+  // with the triangles numbered counter-clockwise seen from the top (Gmsh's prism order) holds
+  // an inverted element, which the mesh refuses.
+  auto file = [](const char* points) {
+    return std::string("# vtk DataFile Version 3.0\nwedge\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 6 double\n") +
+           points + "CELLS 1 7\n6 0 1 2 3 4 5\nCELL_TYPES 1\n13\n";
+  };
+  const auto d = io::read_vtk_legacy_string<Wedge6>(file("0 0 0\n0 1 0\n1 0 0\n0 0 1\n0 1 1\n1 0 1\n"), "wedge.vtk");
+  CHECK(element_volume<Wedge6>(d.mesh.element_nodes(0)) == Approx(0.5).epsilon(1e-15));
+  CHECK_THROWS_AS(io::read_vtk_legacy_string<Wedge6>(file("0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 0 1\n0 1 1\n"), "gmsh_order.vtk"),
+                  MeshError);
+}
+
 TEST_CASE("legacy vtk: version 5.1 OFFSETS/CONNECTIVITY layout", "[io][vtk]") {
   const auto d = io::read_vtk_legacy<Hex8>(data_path("bar_hex8_v51.vtk"));
   const Mesh<Hex8> bar = bar_mesh<Hex8>(2, 1, 1);

@@ -27,10 +27,12 @@ namespace plastifem {
 /// - `contains(xi, tol)`: point containment in reference coordinates;
 /// - X-FEM cuts: `sub_tetrahedra` (a split into tetrahedra on the nodes) and the degrees of
 ///   the stiffness and mass integrands on a tetrahedral piece (`piece_*_degree`);
-/// - file formats: `vtk_cell_type`, `gmsh_type` (same node order unless the readers say so).
+/// - file formats: `vtk_cell_type` (the node order is VTK's), `gmsh_type` and `gmsh_nodes` (the
+///   Gmsh node of each local node).
 namespace detail {
 /// The node lists an element trait gives are consistent: one per face, as long as the face's
-/// kind says and no longer than nodes_per_face, sub-tetrahedra on the element's nodes.
+/// kind says and no longer than nodes_per_face; sub-tetrahedra and edges on the element's
+/// nodes; gmsh_nodes a permutation.
 template <class E>
 consteval bool node_lists_consistent() {
   if (E::faces.size() != static_cast<size_t>(E::num_faces)) return false;
@@ -45,6 +47,15 @@ consteval bool node_lists_consistent() {
   for (const auto& t : E::sub_tetrahedra)
     for (int a : t)
       if (a < 0 || a >= E::num_nodes) return false;
+  for (const auto& edge : E::edges)
+    if (edge[0] < 0 || edge[0] >= E::num_nodes || edge[1] < 0 || edge[1] >= E::num_nodes || edge[0] == edge[1])
+      return false;
+  // gmsh_nodes is a permutation of the nodes.
+  std::array<bool, E::num_nodes> seen{};
+  for (int a : E::gmsh_nodes) {
+    if (a < 0 || a >= E::num_nodes || seen[static_cast<size_t>(a)]) return false;
+    seen[static_cast<size_t>(a)] = true;
+  }
   return true;
 }
 }  // namespace detail
@@ -57,6 +68,7 @@ concept FiniteElement = requires(const Vec3& xi, Scalar tol) {
   { E::order } -> std::convertible_to<int>;
   { E::vtk_cell_type } -> std::convertible_to<int>;
   { E::gmsh_type } -> std::convertible_to<int>;
+  { E::gmsh_nodes.size() } -> std::convertible_to<size_t>;
   { E::reference_volume } -> std::convertible_to<Scalar>;
   { E::reference_nodes() } -> std::same_as<Eigen::Matrix<Scalar, 3, E::num_nodes>>;
   { E::shape(xi) } -> std::same_as<Eigen::Matrix<Scalar, E::num_nodes, 1>>;

@@ -22,6 +22,7 @@ struct Hex8 {
   static constexpr int num_vertices = 8;
   static constexpr int order = 1;
   static constexpr int vtk_cell_type = 12, gmsh_type = 5;
+  static constexpr std::array<int, 8> gmsh_nodes{0, 1, 2, 3, 4, 5, 6, 7};  ///< Gmsh's order is VTK's
   static constexpr Scalar reference_volume = 8.0;
 
   /// Faces with outward normals by the right-hand rule; Quad4.

@@ -24,6 +24,9 @@ struct Tet10 : TetrahedronQuadrature {
   static constexpr int num_vertices = 4;
   static constexpr int order = 2;
   static constexpr int vtk_cell_type = 24, gmsh_type = 11;
+  /// Local node k is Gmsh's node gmsh_nodes[k]: Gmsh numbers the last two mid-edge nodes the
+  /// other way round (its 8 on edge (2,3), 9 on (1,3)).
+  static constexpr std::array<int, 10> gmsh_nodes{0, 1, 2, 3, 4, 5, 6, 7, 9, 8};
   static constexpr Scalar reference_volume = 1.0 / 6.0;
 
   /// Faces with outward normals: three corners, then the mid-edge nodes between them; Tri6.

@@ -27,6 +27,7 @@ struct Tet4 : TetrahedronQuadrature {
   static constexpr int num_vertices = 4;  ///< corner nodes (the first ones)
   static constexpr int order = 1;         ///< polynomial order of the shape functions
   static constexpr int vtk_cell_type = 10, gmsh_type = 4;
+  static constexpr std::array<int, 4> gmsh_nodes{0, 1, 2, 3};  ///< Gmsh's order is VTK's
   static constexpr Scalar reference_volume = 1.0 / 6.0;
 
   /// Faces with outward normals by the right-hand rule; Tri3.

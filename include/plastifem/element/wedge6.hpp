@@ -2,16 +2,15 @@
 // Linear prism (wedge), 6 nodes: a triangle times a segment. The element of thick shells made
 // from triangulated surfaces (membranes, capsules: mesh/generators.hpp, thick_shell_wedge6).
 //
-//           5                    reference nodes (xi, eta, zeta):
-//          /|\                     0 (0,0,-1)  1 (1,0,-1)  2 (0,1,-1)
-//         / | \                    3 (0,0, 1)  4 (1,0, 1)  5 (0,1, 1)
-//        3-----4                 the triangle 0-1-2 counter-clockwise seen from the top (3-4-5).
-//        |  2  |
-//        | / \ |                 VTK_WEDGE (13) and Gmsh type 6 ("6-node prism"): same numbering
-//        |/   \|                 (VTK's shape functions in vtkWedge.cxx put 3-4-5 on the side
-//        0-----1                 the right-hand normal of 0-1-2 points to, as here).
+// Reference nodes (xi, eta, zeta): 0 (0,0,-1), 1 (0,1,-1), 2 (1,0,-1) at the bottom, and 3, 4, 5
+// above them at zeta = 1.
 //
-// With L = (1 - xi - eta, xi, eta): N_i = L_i (1 - zeta) / 2, N_{3+i} = L_i (1 + zeta) / 2.
+// VTK_WEDGE (13) order: the right-hand normal of the triangle 0-1-2 points away from 3-4-5
+// (VTK's documentation and face list; ParaView's cell size is negative for a wedge numbered
+// the other way round). Gmsh's prism (type 6) numbers 0-1-2 the other way round, so the Gmsh
+// reader takes a prism's nodes in the order `gmsh_nodes`.
+//
+// With L = (1 - xi - eta, eta, xi): N_i = L_i (1 - zeta) / 2, N_{3+i} = L_i (1 + zeta) / 2.
 #include <plastifem/element/face.hpp>
 #include <plastifem/element/quadrature.hpp>
 
@@ -66,13 +65,15 @@ struct Wedge6 {
   static constexpr int num_vertices = 6;
   static constexpr int order = 1;
   static constexpr int vtk_cell_type = 13, gmsh_type = 6;
+  /// Local node k is node gmsh_nodes[k] of a Gmsh prism (0-1-2 counter-clockwise seen from 3-4-5).
+  static constexpr std::array<int, 6> gmsh_nodes{0, 2, 1, 3, 5, 4};
   static constexpr Scalar reference_volume = 1.0;  // triangle 1/2 times height 2
 
   /// Faces with outward normals by the right-hand rule: the two triangles (Tri3, the fourth
   /// entry unused), then the three quadrilaterals (Quad4).
   static constexpr int num_faces = 5, nodes_per_face = 4;
   static constexpr std::array<std::array<int, 4>, 5> faces{
-      {{0, 2, 1, -1}, {3, 4, 5, -1}, {0, 1, 4, 3}, {1, 2, 5, 4}, {2, 0, 3, 5}}};
+      {{0, 1, 2, -1}, {3, 5, 4, -1}, {0, 2, 5, 3}, {2, 1, 4, 5}, {1, 0, 3, 4}}};
   static constexpr FaceShape face_shape(int face) { return face < 2 ? FaceShape::triangle3 : FaceShape::quadrilateral4; }
   static constexpr std::array<std::array<int, 2>, 9> edges{
       {{0, 1}, {1, 2}, {2, 0}, {3, 4}, {4, 5}, {5, 3}, {0, 3}, {1, 4}, {2, 5}}};
@@ -83,14 +84,14 @@ struct Wedge6 {
 
   static NodeMatrix reference_nodes() {
     NodeMatrix X;
-    X << 0, 1, 0, 0, 1, 0,
-         0, 0, 1, 0, 0, 1,
+    X << 0, 0, 1, 0, 0, 1,
+         0, 1, 0, 0, 1, 0,
         -1, -1, -1, 1, 1, 1;
     return X;
   }
 
   static ShapeVector shape(const Vec3& p) {
-    const Scalar L[3] = {1 - p.x() - p.y(), p.x(), p.y()};
+    const Scalar L[3] = {1 - p.x() - p.y(), p.y(), p.x()};
     const Scalar lo = (1 - p.z()) / 2, hi = (1 + p.z()) / 2;
     ShapeVector N;
     for (int i = 0; i < 3; ++i) N[i] = L[i] * lo, N[3 + i] = L[i] * hi;
@@ -98,8 +99,8 @@ struct Wedge6 {
   }
 
   static ShapeGradient gradient(const Vec3& p) {
-    const Scalar L[3] = {1 - p.x() - p.y(), p.x(), p.y()};
-    const Scalar dL[3][2] = {{-1, -1}, {1, 0}, {0, 1}};  // dL_i / d(xi, eta)
+    const Scalar L[3] = {1 - p.x() - p.y(), p.y(), p.x()};
+    const Scalar dL[3][2] = {{-1, -1}, {0, 1}, {1, 0}};  // dL_i / d(xi, eta)
     const Scalar lo = (1 - p.z()) / 2, hi = (1 + p.z()) / 2;
     ShapeGradient G;
     for (int i = 0; i < 3; ++i) {

@@ -28,10 +28,10 @@ struct CutOptions {
   /// A node whose support has less than this fraction of its volume on one side is not enriched.
   Scalar min_fragment = 1e-4;
   /// A cut element's stiffness rule on each side: the sub-tetrahedra's rules (degree 4 for Hex8,
-  /// 2 for Tet10) compressed to at most as many points as the integrand of linear elasticity has
-  /// polynomials (Hex8 23, Tet10 10; Tet4 keeps one point per piece), with the same integrals of
-  /// them: the same stiffness on an affine element, a tenth of the points for Hex8
-  /// (enrichment/subdivision.hpp). false keeps every sub-tetrahedron's points (the thesis'
+  /// 2 for Tet10 and Wedge6) compressed to at most as many points as the integrand of linear
+  /// elasticity has polynomials (Hex8 23, Tet10 and Wedge6 10; Tet4 keeps one point per piece),
+  /// with the same integrals of them: the same stiffness on an affine element, a tenth of the
+  /// points for Hex8 (enrichment/subdivision.hpp). false keeps every sub-tetrahedron's points (the thesis'
   /// sub-element integration: up to ~250 per side of a Hex8).
   bool compress_quadrature = true;
 

@@ -6,7 +6,7 @@
 // 1. The reference element is decomposed into reference tetrahedra whose vertices are element
 //    nodes: Tet4 itself; Tet10 into 8 (its four corner tetrahedra and the inner octahedron split
 //    along the 6-8 diagonal); Hex8 into the 6 tetrahedra around its 0-6 diagonal (the Kuhn
-//    split).
+//    split); Wedge6 into 3 (each element's sub_tetrahedra trait).
 // 2. On each of them the level set is the linear interpolant of its vertices' nodal values, and
 //    the tetrahedron is split by that plane: the thesis' case analysis by the signs of the four
 //    values (+ - - -: a tetrahedron and a prism; + + - -: two prisms; with a vertex on the cut
@@ -26,7 +26,8 @@
 //
 // Exactness: on each piece the rule integrates polynomials of its degree in reference
 // coordinates exactly. The solver asks for the degrees of linear elasticity's integrands
-// (enrichment/cut_element.hpp): Tet4 stiffness 0 and mass 2, Tet10 2 and 4, Hex8 4 and 5 (the
+// (the element traits' piece_*_degree): Tet4 stiffness 1 and mass 2, Tet10 and Wedge6 2 and 4,
+// Hex8 4 and 5 (the
 // Hex8 mass integrand has degree 6 on a parallelepiped; the rules are tabulated to degree 5: a
 // relative error of ~1e-4 in the masses of the cut element's enriched dofs). The stiffness rule
 // of each side is then compressed (compress_rule below; CutOptions::compress_quadrature) to at

@@ -114,8 +114,8 @@ Mesh<Wedge6> box_wedge6(const BoxSpec& b) {
     for (int j = 0; j < b.ny; ++j)
       for (int i = 0; i < b.nx; ++i) {
         const auto c = detail::cell_corners(b, i, j, k);  // local bits di + 2 dj + 4 dk
-        prisms.push_back({c[0], c[1], c[3], c[4], c[5], c[7]});  // triangles counter-clockwise from +z
-        prisms.push_back({c[0], c[3], c[2], c[4], c[7], c[6]});
+        prisms.push_back({c[0], c[3], c[1], c[4], c[7], c[5]});  // triangles clockwise from +z (VTK)
+        prisms.push_back({c[0], c[2], c[3], c[4], c[6], c[7]});
       }
   Mesh<Wedge6> mesh(detail::box_nodes(b), std::move(prisms));
   detail::name_box_sides(mesh, b);
@@ -324,11 +324,12 @@ Mesh<Wedge6> thick_shell_wedge6(const TriangleSurface& s, Scalar thickness, int 
   prisms.reserve(s.triangles.size() * static_cast<size_t>(layers));
   for (int l = 0; l < layers; ++l)
     for (const Triangle& t : s.triangles) {
+      // The triangle reversed: a prism's bottom triangle faces away from its top (VTK's order).
       const Index lo = l * n, hi = (l + 1) * n;
       if (thickness > 0)
-        prisms.push_back({t[0] + lo, t[1] + lo, t[2] + lo, t[0] + hi, t[1] + hi, t[2] + hi});
+        prisms.push_back({t[0] + lo, t[2] + lo, t[1] + lo, t[0] + hi, t[2] + hi, t[1] + hi});
       else  // offset against the normal: the offset layer is the prism's bottom
-        prisms.push_back({t[0] + hi, t[1] + hi, t[2] + hi, t[0] + lo, t[1] + lo, t[2] + lo});
+        prisms.push_back({t[0] + hi, t[2] + hi, t[1] + hi, t[0] + lo, t[2] + lo, t[1] + lo});
     }
   Mesh<Wedge6> mesh(std::move(X), std::move(prisms));
   std::vector<Index> bottom(static_cast<size_t>(n)), top(static_cast<size_t>(n));

@@ -30,12 +30,19 @@ struct FaceRef {
 /// first, in the element's local face order (outward normal).
 template <FiniteElement E>
 struct FaceNodes {
-  std::array<Index, E::nodes_per_face> ids{};
+  std::array<Index, E::nodes_per_face> ids = filled(-1);  ///< -1 beyond size() (a triangle of a Wedge6)
   FaceShape shape{};
   int size() const { return face_node_count(shape); }
   Index operator[](int k) const { return ids[static_cast<size_t>(k)]; }
   const Index* begin() const { return ids.data(); }
   const Index* end() const { return ids.data() + size(); }
+
+ private:
+  static constexpr std::array<Index, E::nodes_per_face> filled(Index v) {
+    std::array<Index, E::nodes_per_face> a{};
+    a.fill(v);
+    return a;
+  }
 };
 
 /// What validation found that is not an error.

@@ -10,8 +10,9 @@
 //     that every node of the file has an index; the mesh lists them in report().unused_nodes.
 //   - Volume elements: all must be of E's type (E::gmsh_type: Tet4 4, Tet10 11, Hex8 5, Wedge6 6); another
 //     volume type is an error, lower-dimensional elements are only used for physical groups.
-//     Gmsh's Tet10 numbers its last two mid-edge nodes the other way round from VTK (Gmsh node 8
-//     is on edge (2,3), node 9 on edge (1,3)); they are swapped into plastifem's (VTK's) order.
+//     Nodes are taken into plastifem's (VTK's) order by E::gmsh_nodes: Gmsh's Tet10 numbers its
+//     last two mid-edge nodes the other way round (Gmsh node 8 is on edge (2,3), node 9 on edge
+//     (1,3)), and its prism's bottom triangle the other way round.
 //   - A volume element listed several times is one element: lines with its tag, or with its
 //     nodes in the same order, are merged and their groups all kept. 2.2 lists an element once
 //     per physical group (Gmsh's writer under a new tag each time, other tools under the same
@@ -413,8 +414,8 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
                                           detail::gmsh_type_info(want)->name, want));
     }
     Connectivity c;
-    for (int k = 0; k < E::num_nodes; ++k) c[static_cast<size_t>(k)] = node(el, static_cast<size_t>(k));
-    if constexpr (std::is_same_v<E, Tet10>) std::swap(c[8], c[9]);  // Gmsh: 8 on edge (2,3), 9 on (1,3); VTK: the reverse
+    for (int k = 0; k < E::num_nodes; ++k)  // into VTK's order (Tet10's last two, Wedge6's triangles)
+      c[static_cast<size_t>(k)] = node(el, static_cast<size_t>(E::gmsh_nodes[static_cast<size_t>(k)]));
     Connectivity sorted = c;
     std::sort(sorted.begin(), sorted.end());
     const auto by_tag = cell_of_tag.find(el.tag);
