@@ -1,5 +1,6 @@
 // Explicit instantiation definitions of the compiled compositions (solver/instantiations.hpp:
-// the one list), one source file per element so that the library builds in parallel.
+// the one list), in the source files CMakeLists.txt generates from that list: one per element,
+// so that the library builds in parallel, and one for Hex8's mean-dilatation models.
 #include <plastifem/cutting.hpp>
 #include <plastifem/plasticity.hpp>
 

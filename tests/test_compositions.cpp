@@ -10,6 +10,7 @@
 // Built against plastifem::compiled, each composition is linked from the library (the list's
 // own instantiations), so this file compiles only its own code.
 #include "catch.hpp"
+#include "compositions.hpp"
 #include "free_piece.hpp"
 
 #include <plastifem/cutting.hpp>
@@ -21,24 +22,18 @@
 #include <tuple>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 namespace {
-
-template <class T>
-struct drop_first;
-template <class A, class... S>
-struct drop_first<std::tuple<A, S...>> {
-  using type = std::tuple<S...>;
-};
 
 #define PLASTIFEM_TEST_ELASTIC(E, M) , Solver<E, M>
 #define PLASTIFEM_TEST_PLASTIC(E, M, P) , Solver<E, M, P>
 #define PLASTIFEM_TEST_ENRICHED(E, M, X) , Solver<E, M, NoPlasticity, X>
 #define PLASTIFEM_TEST_PLASTIC_ENRICHED(E, M, P, X) , Solver<E, M, P, X>
-using ElasticSolvers = drop_first<std::tuple<void PLASTIFEM_ELASTIC_SOLVERS(PLASTIFEM_TEST_ELASTIC)>>::type;
-using PlasticSolvers = drop_first<std::tuple<void PLASTIFEM_PLASTIC_SOLVERS(PLASTIFEM_TEST_PLASTIC)>>::type;
-using EnrichedSolvers = drop_first<std::tuple<void PLASTIFEM_ENRICHED_SOLVERS(PLASTIFEM_TEST_ENRICHED)
-                                                  PLASTIFEM_PLASTIC_ENRICHED_SOLVERS(PLASTIFEM_TEST_PLASTIC_ENRICHED)>>::type;
+using ElasticSolvers = DropFirst<std::tuple<void PLASTIFEM_ELASTIC_SOLVERS(PLASTIFEM_TEST_ELASTIC)>>;
+using PlasticSolvers = DropFirst<std::tuple<void PLASTIFEM_PLASTIC_SOLVERS(PLASTIFEM_TEST_PLASTIC)>>;
+using EnrichedSolvers = DropFirst<std::tuple<void PLASTIFEM_ENRICHED_SOLVERS(PLASTIFEM_TEST_ENRICHED)
+                                                  PLASTIFEM_PLASTIC_ENRICHED_SOLVERS(PLASTIFEM_TEST_PLASTIC_ENRICHED)>>;
 
 const Material soft{3000, 0.45, 1.0};  // SCENES.md bar material
 const Vec3 g(0, 0, -9.81);

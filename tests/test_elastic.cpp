@@ -8,6 +8,7 @@
 // distance from the element centroid, so k * size is the force a unit-size displacement can
 // produce; round-off in f is a few eps times that.
 #include "catch.hpp"
+#include "compositions.hpp"
 #include "eigenvalues.hpp"
 
 #include <plastifem/plastifem.hpp>
@@ -20,6 +21,7 @@
 #include <random>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 // Every elastic model meets the ElasticModel concept on every element (the header checks none:
 // each Solver checks its own composition).
@@ -136,8 +138,8 @@ Mat3 svd_rotation(const ElementNodes<E>& X, const ElementNodes<E>& x) {
 
 // ---- the small-strain stiffness K0 ---------------------------------------------------------
 
-TEMPLATE_TEST_CASE("K0 is symmetric, has the 6 rigid-body modes as its null space, and is PSD", "[elastic][K0]",
-                   Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("K0 is symmetric, has the 6 rigid-body modes as its null space, and is PSD",
+                        "[elastic][K0]", AllElements) {
   using E = TestType;
   std::mt19937 rng(7);
   for (int trial = 0; trial < 3; ++trial) {
@@ -176,8 +178,8 @@ TEMPLATE_TEST_CASE("K0 is symmetric, has the 6 rigid-body modes as its null spac
 
 // ---- rigid motions: corotational forces vanish, linear ones do not --------------------------
 
-TEMPLATE_TEST_CASE("large rigid rotation: no corotational force, a large linear ghost force", "[elastic][rotation]",
-                   Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("large rigid rotation: no corotational force, a large linear ghost force",
+                        "[elastic][rotation]", AllElements) {
   using E = TestType;
   std::mt19937 rng(11);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -213,8 +215,8 @@ TEMPLATE_TEST_CASE("large rigid rotation: no corotational force, a large linear 
 
 // ---- the two models agree at small strain, and their energies ------------------------------
 
-TEMPLATE_TEST_CASE("small strain: corotational equals linear to second order, and energies", "[elastic][small]", Tet4,
-                   Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("small strain: corotational equals linear to second order, and energies",
+                        "[elastic][small]", AllElements) {
   using E = TestType;
   std::mt19937 rng(13);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -250,8 +252,8 @@ TEMPLATE_TEST_CASE("small strain: corotational equals linear to second order, an
   }
 }
 
-TEMPLATE_TEST_CASE("corotational tangent is R K0 R^T and symmetric at a deformed state", "[elastic][tangent]", Tet4,
-                   Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("corotational tangent is R K0 R^T and symmetric at a deformed state",
+                        "[elastic][tangent]", AllElements) {
   using E = TestType;
   std::mt19937 rng(17);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -273,8 +275,8 @@ TEMPLATE_TEST_CASE("corotational tangent is R K0 R^T and symmetric at a deformed
   REQUIRE((f - B * (d.K0 * y)).norm() <= 1e-12 * f.norm());
 }
 
-TEMPLATE_TEST_CASE("corotational force is frame indifferent: f(Q x + t) = Q f(x)", "[elastic][objectivity]", Tet4,
-                   Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("corotational force is frame indifferent: f(Q x + t) = Q f(x)",
+                        "[elastic][objectivity]", AllElements) {
   using E = TestType;
   std::mt19937 rng(19);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -295,8 +297,8 @@ TEMPLATE_TEST_CASE("corotational force is frame indifferent: f(Q x + t) = Q f(x)
   }
 }
 
-TEMPLATE_TEST_CASE("inverted element: finite corotational force that pushes the node back", "[elastic][inverted]",
-                   Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("inverted element: finite corotational force that pushes the node back",
+                        "[elastic][inverted]", AllElements) {
   using E = TestType;
   const ElementNodes<E> X = E::reference_nodes();
   ElementNodes<E> x = X;
@@ -344,8 +346,8 @@ TEMPLATE_TEST_CASE("inverted element: finite corotational force that pushes the 
 
 // ---- Corotational (one rotation per quadrature point) ----------------------------------------
 
-TEMPLATE_TEST_CASE("per-point corotational: rigid motions, small strain, exact energy gradient, torque-free",
-                   "[elastic][corotational]", Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("per-point corotational: rigid motions, small strain, exact energy gradient, torque-free",
+                        "[elastic][corotational]", AllElements) {
   using E = TestType;
   std::mt19937 rng(29);
   const ElementNodes<E> X = distorted_element<E>(rng);
@@ -459,8 +461,8 @@ TEMPLATE_TEST_CASE("per-point corotational: rigid motions, small strain, exact e
   }
 }
 
-TEMPLATE_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress, von Mises of uniaxial stress", "[elastic][stress]",
-                   Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress, von Mises of uniaxial stress",
+                        "[elastic][stress]", AllElements) {
   using E = TestType;
   std::mt19937 rng(23);
   const ElementNodes<E> X = distorted_element<E>(rng);

@@ -2,6 +2,7 @@
 // finite-difference gradients, exact monomial integration (and failure one degree above),
 // closed-form volumes, Jacobian sign.
 #include "catch.hpp"
+#include "compositions.hpp"
 
 #include <plastifem/plastifem.hpp>
 
@@ -11,6 +12,7 @@
 #include <utility>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 namespace {
 
@@ -118,8 +120,8 @@ TEST_CASE("hexahedron Gauss rules are exact to their degree and not above", "[qu
   check_hex_rule(hex_gauss<3>());
 }
 
-TEMPLATE_TEST_CASE("shape functions: partition of unity, Kronecker property, FD gradients", "[element]", Tet4,
-                   Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("shape functions: partition of unity, Kronecker property, FD gradients",
+                        "[element]", AllElements) {
   using E = TestType;
   const auto Xref = E::reference_nodes();
   SECTION("Kronecker property at the nodes") {
@@ -178,7 +180,7 @@ TEST_CASE("Tet10 mid-edge nodes sit at the middle of their edges", "[element]") 
       REQUIRE((X.col(f[3 + k]) - 0.5 * (X.col(f[k]) + X.col(f[(k + 1) % 3]))).norm() == 0);
 }
 
-TEMPLATE_TEST_CASE("element volumes match closed form", "[element]", Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("element volumes match closed form", "[element]", AllElements) {
   using E = TestType;
   // Affine map x = A xi + b with det A = 2.7: volume = |det A| * reference volume.
   Mat3 A;
@@ -246,8 +248,8 @@ struct SubTetOffTheElement : Hex8 {
 };
 static_assert(FiniteElement<Tet4> && !FiniteElement<FaceOffTheElement> && !FiniteElement<SubTetOffTheElement>);
 
-TEMPLATE_TEST_CASE("element traits: containment, faces, sub-tetrahedra and volume degree", "[element]", Tet4,
-                   Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("element traits: containment, faces, sub-tetrahedra and volume degree",
+                        "[element]", AllElements) {
   using E = TestType;
   const auto Xref = E::reference_nodes();
   const Vec3 centre = reference_centre<E>();
@@ -324,7 +326,7 @@ TEMPLATE_TEST_CASE("element traits: containment, faces, sub-tetrahedra and volum
   }
 }
 
-TEMPLATE_TEST_CASE("Jacobian sign detects inverted elements", "[element]", Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("Jacobian sign detects inverted elements", "[element]", AllElements) {
   using E = TestType;
   ElementNodes<E> X = E::reference_nodes();
   REQUIRE(jacobian<E>(X, Vec3(0.2, 0.2, 0.2)).determinant() > 0);

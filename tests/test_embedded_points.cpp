@@ -13,6 +13,7 @@
 //    cell (it stays inside it); its stress is its element's; under plastic flow its material
 //    position is interpolated from the material mesh, exactly the node's at a node.
 #include "catch.hpp"
+#include "compositions.hpp"
 
 #include <plastifem/cutting.hpp>
 #include <plastifem/embedding/embedded_points.hpp>
@@ -23,9 +24,10 @@
 #include <vector>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
-TEMPLATE_TEST_CASE("embedded points: a linear field is reproduced, nodes give their values", "[points]", Tet4, Tet10,
-                   Hex8) {
+TEMPLATE_LIST_TEST_CASE("embedded points: a linear field is reproduced, nodes give their values",
+                        "[points]", AllElements) {
   const Mesh<TestType> mesh = bar_mesh<TestType>(6, 2, 2);
   std::mt19937 rng(5);
   std::uniform_real_distribution<Scalar> u01(0, 1);
@@ -111,8 +113,8 @@ std::vector<Vec3> nodes_and_random_points(const Mesh<E>& mesh, Vec3 box, int n, 
 
 }  // namespace
 
-TEMPLATE_TEST_CASE("embedded points follow a solver: nodes exactly, cell points at their reference coordinates",
-                   "[points]", Tet4, Tet10, Hex8) {
+TEMPLATE_LIST_TEST_CASE("embedded points follow a solver: nodes exactly, cell points at their reference coordinates",
+                        "[points]", AllElements) {
   using E = TestType;
   const Mesh<E> mesh = bar_mesh<E>(6, 2, 2);
   const std::vector<Vec3> X = nodes_and_random_points(mesh, Vec3(6, 2, 2), 300, 11);

@@ -12,6 +12,7 @@
 //    the facets' corners into a closed cube of volume 1; malformed files are refused with
 //    file:line (or the facet) and the reason.
 #include "catch.hpp"
+#include "compositions.hpp"
 
 #include <plastifem/embedding/embedded_surface.hpp>
 #include <plastifem/mesh/io/io.hpp>
@@ -23,6 +24,7 @@
 #include <numbers>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 namespace {
 
@@ -123,8 +125,8 @@ TEST_CASE("liver surface: closed, facing out, its volume converges to the map's 
   CHECK(slope > 0.5);
 }
 
-TEMPLATE_TEST_CASE("embedded surface: an affine motion moves it exactly, its volume by det(I + A)", "[surface]", Tet4,
-                   Tet10, Hex8) {
+TEMPLATE_LIST_TEST_CASE("embedded surface: an affine motion moves it exactly, its volume by det(I + A)",
+                        "[surface]", AllElements) {
   using E = TestType;
   const Mesh<E> mesh = bar_mesh<E>(4, 4, 4);
   const TriangleSurface sphere = sphere_surface(Vec3(2, 2, 2), 1.5, 3);

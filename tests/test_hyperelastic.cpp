@@ -1,10 +1,11 @@
-// Hyperelastic models (NeoHookean, NeoHookeanAbaqus, StableNeoHookean) on Tet4, Tet10, Hex8:
+// Hyperelastic models (NeoHookean, NeoHookeanAbaqus, StableNeoHookean) on every element:
 // finite-difference consistency, closed-form homogeneous states (uniaxial, equibiaxial, simple
 // shear: the energies' stress-stretch relations written out here and solved by scalar root
 // finding), small-strain agreement with Linear, frame indifference, the extremes (inversion,
 // nu = 0.499, huge time steps), and mean dilatation against locking in bending, measured
 // against the continuum answer (Richardson extrapolation with the clamp singularity's order).
 #include "catch.hpp"
+#include "compositions.hpp"
 #include "eigenvalues.hpp"
 #include "random_elements.hpp"
 #include "moved_mesh.hpp"
@@ -18,6 +19,7 @@
 #include <random>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 using testing::big_rotation, testing::deformed, testing::distorted_element;
 
 namespace {
@@ -26,19 +28,13 @@ const Material rubber{3000, 0.45, 1.0};
 
 }  // namespace
 
-template <class E_, class M_>
-struct Combo {
-  using E = E_;
-  using M = M_;
-};
-using AllHyper = std::tuple<Combo<Tet4, NeoHookean>, Combo<Tet10, NeoHookean>, Combo<Hex8, NeoHookean>,
-                            Combo<Tet4, NeoHookeanAbaqus>, Combo<Tet10, NeoHookeanAbaqus>, Combo<Hex8, NeoHookeanAbaqus>,
-                            Combo<Tet4, StableNeoHookean>, Combo<Tet10, StableNeoHookean>, Combo<Hex8, StableNeoHookean>,
-                            Combo<Hex8, NeoHookeanMeanDilatation>, Combo<Hex8, NeoHookeanAbaqusMeanDilatation>,
-                            Combo<Hex8, StableNeoHookeanMeanDilatation>, Combo<Wedge6, NeoHookean>,
-                            Combo<Wedge6, StableNeoHookean>>;
+// The hyperelastic models on every element, and Hex8's mean-dilatation variants of them.
+using AllHyper = Concat<OnEveryElement<NeoHookean, NeoHookeanAbaqus, StableNeoHookean>,
+                        std::tuple<Combo<Hex8, NeoHookeanMeanDilatation>, Combo<Hex8, NeoHookeanAbaqusMeanDilatation>,
+                                   Combo<Hex8, StableNeoHookeanMeanDilatation>>>;
 
-TEMPLATE_LIST_TEST_CASE("hyperelastic force = -dW/dx and tangent = df/dx (finite differences)", "[hyper][fd]", AllHyper) {
+TEMPLATE_LIST_TEST_CASE("hyperelastic force = -dW/dx and tangent = df/dx (finite differences)",
+                        "[hyper][fd]", AllHyper) {
   using E = typename TestType::E;
   using M = typename TestType::M;
   std::mt19937 rng(5);

@@ -12,8 +12,10 @@
 #include <tuple>
 
 #include "catch.hpp"
+#include "compositions.hpp"
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 namespace {
 
@@ -84,7 +86,7 @@ const char* encoding_name(io::Encoding e) {
 
 // ================================================================================ .vtu ========
 
-TEMPLATE_TEST_CASE("vtu round trip is bit-exact in every encoding", "[io][vtu]", Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("vtu round trip is bit-exact in every encoding", "[io][vtu]", AllElements) {
   using E = TestType;
   const Mesh<E> mesh = perturbed_bar<E>(3, 2, 1);
   std::mt19937 rng(42);

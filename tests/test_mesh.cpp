@@ -1,5 +1,6 @@
 // Mesh validation, selections, boundary extraction and the generators.
 #include "catch.hpp"
+#include "compositions.hpp"
 
 #include <plastifem/plastifem.hpp>
 
@@ -8,6 +9,7 @@
 #include <type_traits>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 namespace {
 
@@ -233,8 +235,8 @@ TEST_CASE("mesh validation gives clear errors", "[mesh][errors]") {
   }
 }
 
-TEMPLATE_TEST_CASE("point locator: the answers of testing every element, at a fraction of the elements",
-                   "[mesh][locate]", Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("point locator: the answers of testing every element, at a fraction of the elements",
+                        "[mesh][locate]", AllElements) {
   // Random points in and around the bounding box, points exactly on nodes and edges (shared by
   // several elements: the lowest-numbered one is the answer either way) and element centres,
   // on a bar and (Hex8) a curved tube whose elements all differ.

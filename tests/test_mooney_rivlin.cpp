@@ -15,6 +15,7 @@
 //    is checked against the closed form too.
 // Printed errors are the measured ones quoted in the tolerances' comments.
 #include "catch.hpp"
+#include "compositions.hpp"
 #include "eigenvalues.hpp"
 #include "random_elements.hpp"
 
@@ -29,13 +30,15 @@
 #include <string>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 using testing::big_rotation, testing::deformed, testing::distorted_element;
 
 // The ElasticModel concept on every element, both variants (test_elastic.cpp's catalogue, for
 // this file's model).
-static_assert(ElasticModel<MooneyRivlin, Tet4> && ElasticModel<MooneyRivlin, Tet10> && ElasticModel<MooneyRivlin, Hex8>);
+static_assert(ElasticModel<MooneyRivlin, Tet4> && ElasticModel<MooneyRivlin, Tet10> && ElasticModel<MooneyRivlin, Hex8> &&
+              ElasticModel<MooneyRivlin, Wedge6>);
 static_assert(ElasticModel<MooneyRivlinMeanDilatation, Tet4> && ElasticModel<MooneyRivlinMeanDilatation, Tet10> &&
-              ElasticModel<MooneyRivlinMeanDilatation, Hex8>);
+              ElasticModel<MooneyRivlinMeanDilatation, Hex8> && ElasticModel<MooneyRivlinMeanDilatation, Wedge6>);
 static_assert(has_exact_tangent_v<MooneyRivlin> && is_hyperelastic_v<MooneyRivlin>);
 
 namespace {
@@ -276,13 +279,7 @@ TEST_CASE("Mooney-Rivlin point law: linear elasticity with mu = 2 (C10 + C01), K
 
 // ---- the element integrals -------------------------------------------------------------------
 
-template <class E_, class M_>
-struct Combo {
-  using E = E_;
-  using M = M_;
-};
-using AllMooney = std::tuple<Combo<Tet4, MooneyRivlin>, Combo<Tet10, MooneyRivlin>, Combo<Hex8, MooneyRivlin>,
-                             Combo<Hex8, MooneyRivlinMeanDilatation>>;
+using AllMooney = Concat<OnEveryElement<MooneyRivlin>, std::tuple<Combo<Hex8, MooneyRivlinMeanDilatation>>>;
 
 TEMPLATE_LIST_TEST_CASE("Mooney-Rivlin elements: force = dW/dx and tangent = df/dx, rest = linear elasticity, frame "
                         "indifference, C01 = 0 = NeoHookeanAbaqus",

@@ -7,6 +7,7 @@
 //    (force, energy, both tangents) to round-off: the fused kernels are an optimisation of the
 //    same formula, and X-FEM's sub-element integration rests on the point-set path.
 #include "catch.hpp"
+#include "compositions.hpp"
 
 #include <plastifem/elastic/elastic.hpp>
 #include <plastifem/mesh/generators.hpp>
@@ -14,6 +15,7 @@
 #include <random>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 namespace {
 
@@ -84,8 +86,8 @@ void check_law_derivatives(const Law& law, const Mat3& F, TangentKind kind, Scal
 
 }  // namespace
 
-TEMPLATE_TEST_CASE("F at the centre, vertices and Gauss points of an affinely moved element is exact",
-                   "[point][kinematics]", Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("F at the centre, vertices and Gauss points of an affinely moved element is exact",
+                        "[point][kinematics]", AllElements) {
   using E = TestType;
   const ElementNodes<E> X = deformed_element<E>(1).first;
   Mat3 A;
@@ -152,8 +154,8 @@ TEMPLATE_TEST_CASE("the corotational law's rotation and stretch: F = R S, R prop
   CHECK(R.determinant() == Approx(1.0).epsilon(1e-14));
 }
 
-TEMPLATE_TEST_CASE("every model's point-set integral equals its fused kernel over the Gauss rule", "[point][kernel]",
-                   Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("every model's point-set integral equals its fused kernel over the Gauss rule",
+                        "[point][kernel]", AllElements) {
   using E = TestType;
   for (unsigned seed : {1u, 2u}) {
     check_point_set_equals_fused<Linear, E>(seed);
@@ -168,8 +170,8 @@ TEMPLATE_TEST_CASE("every model's point-set integral equals its fused kernel ove
   }
 }
 
-TEMPLATE_TEST_CASE("a point set of any size: the model's integral is the sum of its point law over the points",
-                   "[point][kernel]", Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("a point set of any size: the model's integral is the sum of its point law over the points",
+                        "[point][kernel]", AllElements) {
   // Corotational takes a point set in chunks of the Gauss rule's size through its batched kernel
   // (padding the last chunk with zero-weight points); here the points of the mass rule (4 on
   // Tet4, 14 on Tet10, 27 on Hex8 and Wedge6), not a multiple of the chunk (the stiffness rule's

@@ -6,6 +6,7 @@
 // reactions against the weight, determinism across thread counts, input validation, and the
 // "failed step leaves the state alone" contract.
 #include "catch.hpp"
+#include "compositions.hpp"
 
 #include <plastifem/plastifem.hpp>
 
@@ -19,6 +20,7 @@
 #include <tuple>
 
 using namespace plastifem;
+using namespace plastifem::testing;
 
 namespace {
 
@@ -91,25 +93,12 @@ Scalar mean_uz(const S& s, const std::vector<Index>& nodes) {
 
 const Material soft{3000.0, 0.45, 1.0};  // SCENES.md bar material
 
-template <class E_, class M_>
-struct Combo {
-  using E = E_;
-  using M = M_;
-};
-using AllCombos = std::tuple<Combo<Tet4, Linear>, Combo<Tet4, Corotational>, Combo<Tet4, CorotationalPerElement>,
-                             Combo<Tet10, Linear>, Combo<Tet10, Corotational>, Combo<Tet10, CorotationalPerElement>,
-                             Combo<Hex8, Linear>, Combo<Hex8, Corotational>, Combo<Hex8, CorotationalPerElement>,
-                             Combo<Tet4, NeoHookean>, Combo<Tet10, NeoHookean>, Combo<Hex8, NeoHookean>,
-                             Combo<Tet4, StableNeoHookean>, Combo<Tet10, StableNeoHookean>, Combo<Hex8, StableNeoHookean>,
-                             Combo<Hex8, LinearMeanDilatation>, Combo<Hex8, CorotationalMeanDilatation>,
-                             Combo<Wedge6, Linear>, Combo<Wedge6, Corotational>, Combo<Wedge6, NeoHookean>>;
-
 }  // namespace
 
 // ---- patch test ------------------------------------------------------------------------------
 
-TEMPLATE_TEST_CASE("patch test: a linear displacement field is reproduced on a distorted mesh", "[solver][patch]",
-                   Tet4, Tet10, Hex8, Wedge6) {
+TEMPLATE_LIST_TEST_CASE("patch test: a linear displacement field is reproduced on a distorted mesh",
+                        "[solver][patch]", AllElements) {
   using E = TestType;
   std::mt19937 rng(42);
   const int n = 4;
@@ -588,7 +577,7 @@ TEST_CASE("one and two threads: assembly bit for bit, steps to round-off", "[sol
 
 // ---- invariants for every element x elastic model --------------------------------------------
 
-TEMPLATE_LIST_TEST_CASE("invariants of every element and elastic model", "[solver][invariants]", AllCombos) {
+TEMPLATE_LIST_TEST_CASE("invariants of every element and elastic model", "[solver][invariants]", ElasticCombos) {
   using E = typename TestType::E;
   using M = typename TestType::M;
   const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
@@ -662,8 +651,8 @@ TEMPLATE_LIST_TEST_CASE("invariants of every element and elastic model", "[solve
 
 // ---- reactions, mass ---------------------------------------------------------------------------
 
-TEMPLATE_TEST_CASE("reactions at the clamp balance the weight, mass = density x volume", "[solver][reactions]", Tet4,
-                   Tet10, Hex8) {
+TEMPLATE_LIST_TEST_CASE("reactions at the clamp balance the weight, mass = density x volume",
+                        "[solver][reactions]", AllElements) {
   using E = TestType;
   const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
   const Scalar volume = 16, rho = soft.density;

@@ -6,12 +6,19 @@
 // A file using one Solver<Hex8, Corotational> and stepping it compiles in a third of the time
 // (docs/build_time.md). Other compositions are instantiated where they are used, as usual.
 //
-// This file is the one list of compositions: the source files of the library (src/solver_*.cpp)
-// instantiate it element by element, the policy headers (<plastifem/plasticity.hpp>,
-// <plastifem/cutting.hpp>) declare its plastic and cut types extern, and the per-composition
-// test (tests/test_compositions.cpp) runs every entry. A new elastic model is one entry in
-// PLASTIFEM_MODELS (and in PLASTIFEM_POLICY_MODELS to be compiled with the policies); a new
-// element is one line in each PLASTIFEM_*_SOLVERS list and a source file of its own.
+// This file is the one list of compositions:
+// - the library's source files, which CMake generates from it (one per element, through
+//   src/instantiate.hpp), instantiate it;
+// - the policy headers (<plastifem/plasticity.hpp>, <plastifem/cutting.hpp>) declare its plastic
+//   and cut types extern;
+// - the tests take their element and composition lists from it (tests/compositions.hpp): the
+//   per-composition test runs every entry, and every test of "each element" runs each element.
+// A new elastic model is one entry in PLASTIFEM_MODELS (and in PLASTIFEM_POLICY_MODELS to be
+// compiled with the policies); a new element is one entry in PLASTIFEM_FOR_EACH_ELEMENT besides
+// its header (docs/architecture.md, "Adding an element").
+
+// Every element (F(X, Element)): the lists below apply their per-element lists through it.
+#define PLASTIFEM_FOR_EACH_ELEMENT(F, X) F(X, Tet4) F(X, Tet10) F(X, Hex8) F(X, Wedge6)
 
 // Every elastic model, instantiated on every element (X(Element, Model)).
 #define PLASTIFEM_MODELS(X, E)                                                                               \
@@ -47,17 +54,11 @@
 
 // The whole list, by kind.
 #define PLASTIFEM_ELASTIC_SOLVERS(X)                                                                         \
-  PLASTIFEM_ELASTIC_SOLVERS_OF(X, Tet4) PLASTIFEM_ELASTIC_SOLVERS_OF(X, Tet10) PLASTIFEM_ELASTIC_SOLVERS_OF(X, Hex8) \
-  PLASTIFEM_ELASTIC_SOLVERS_OF(X, Wedge6) PLASTIFEM_ELASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)
+  PLASTIFEM_FOR_EACH_ELEMENT(PLASTIFEM_ELASTIC_SOLVERS_OF, X) PLASTIFEM_ELASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)
 #define PLASTIFEM_PLASTIC_SOLVERS(X)                                                                         \
-  PLASTIFEM_PLASTIC_SOLVERS_OF(X, Tet4) PLASTIFEM_PLASTIC_SOLVERS_OF(X, Tet10) PLASTIFEM_PLASTIC_SOLVERS_OF(X, Hex8) \
-  PLASTIFEM_PLASTIC_SOLVERS_OF(X, Wedge6) PLASTIFEM_PLASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)
-#define PLASTIFEM_ENRICHED_SOLVERS(X)                                                                        \
-  PLASTIFEM_ENRICHED_SOLVERS_OF(X, Tet4) PLASTIFEM_ENRICHED_SOLVERS_OF(X, Tet10) PLASTIFEM_ENRICHED_SOLVERS_OF(X, Hex8) \
-  PLASTIFEM_ENRICHED_SOLVERS_OF(X, Wedge6)
-#define PLASTIFEM_PLASTIC_ENRICHED_SOLVERS(X)                                                                \
-  PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, Tet4) PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, Tet10)               \
-  PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, Hex8) PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(X, Wedge6)
+  PLASTIFEM_FOR_EACH_ELEMENT(PLASTIFEM_PLASTIC_SOLVERS_OF, X) PLASTIFEM_PLASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)
+#define PLASTIFEM_ENRICHED_SOLVERS(X) PLASTIFEM_FOR_EACH_ELEMENT(PLASTIFEM_ENRICHED_SOLVERS_OF, X)
+#define PLASTIFEM_PLASTIC_ENRICHED_SOLVERS(X) PLASTIFEM_FOR_EACH_ELEMENT(PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF, X)
 
 // The extern declarations of the elastic types are here; those of the plastic and cut types are
 // in <plastifem/plasticity.hpp> and <plastifem/cutting.hpp>, which define those policies (the

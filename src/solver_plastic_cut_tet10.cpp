@@ -1,4 +1,0 @@
-// Plasticity and cutting in one Solver, on Tet10: a source file of its own, so that the library
-// builds in parallel.
-#include "instantiate.hpp"
-PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF(PLASTIFEM_INSTANTIATE_PLASTIC_ENRICHED_SOLVER, Tet10)
