@@ -365,6 +365,34 @@ class Enrichment {
     return r;
   }
 
+  /// The enriched dofs of constrained nodes, in the directions they are constrained in
+  /// (`constrained`: per standard dof). A constraint holds the tissue on both sides of a cut
+  /// through its support (docs/xfem.md), with either enrichment; per component, so that a node
+  /// held in z alone (a sheet on a tray) lets the cut open in x and y (holding every enriched
+  /// component kept a crack through it shut).
+  std::vector<Index> held_dofs(const std::vector<char>& constrained, Index num_nodes) const {
+    std::vector<Index> held;
+    for (Index i = 0; i < num_nodes; ++i)
+      for (int d = 0; d < 3; ++d)
+        if (3 * i + d < static_cast<Index>(constrained.size()) && constrained[3 * i + d])
+          for (Index r : rows_of(i)) held.push_back(3 * r + d);
+    return held;
+  }
+
+  /// Every node's physical displacement, one per column, from the dofs u:
+  /// u_i + sum_cuts psi(H_i, H_i) a_i (`psi`: the enrichment function, psi(H(x), H_i)).
+  template <class Psi>
+  Eigen::Matrix3Xd nodal_displacements(const Vector& u, Index num_nodes, Psi psi) const {
+    Eigen::Matrix3Xd x = Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, num_nodes);
+    for (int c = 0; c < num_cuts(); ++c)
+      for (Index i = 0; i < num_nodes; ++i)
+        if (const Index r = row(c, i); r >= 0) {
+          const Scalar h = sign(c, i);
+          x.col(i) += psi(h, h) * u.template segment<3>(3 * r);
+        }
+    return x;
+  }
+
  private:
   struct CutRecord {
     Cut geometry;

@@ -135,6 +135,12 @@ struct PathValues {
   Vector u, v, a;
 };
 
+/// Refuses a node id outside [0, num_nodes): "`what`: node i out of range [0, n)".
+inline void check_node_ids(std::span<const Index> nodes, Index num_nodes, const char* what) {
+  for (Index i : nodes)
+    if (i < 0 || i >= num_nodes) fail<InvalidArgument>("{}: node {} out of range [0, {})", what, i, num_nodes);
+}
+
 class Constraints {
  public:
   Constraints() = default;
@@ -142,8 +148,10 @@ class Constraints {
 
   /// A set: nodes, motion, mask, and optionally one constant displacement per node added to the
   /// motion's (a grasp holds each node at its displacement when grasped, plus the grasper's path).
+  /// `what` names the set in an error ("boundary condition", "grasp").
   ConstraintHandle add(std::span<const Index> nodes, PrescribedMotion motion, DofMask mask,
-                       std::vector<Vec3> offsets = {}) {
+                       std::vector<Vec3> offsets = {}, const char* what = "boundary condition") {
+    check_node_ids(nodes, num_nodes_, what);
     check_motion(motion);
     if (!offsets.empty() && offsets.size() != nodes.size())
       fail<InvalidArgument>("constraint: {} offsets for {} nodes", offsets.size(), nodes.size());
@@ -153,6 +161,19 @@ class Constraints {
                      std::move(offsets)});
     ++version_;
     return {next_id_, owner_.id()};
+  }
+  /// A grasp at time `now`: each node follows the path's translation from its displacement u
+  /// now, u_i(t) = u_i(now) + path(t) - path(now) (all components).
+  ConstraintHandle grasp(std::span<const Index> nodes, std::function<Vec3(Scalar)> path, Scalar now, const Vector& u) {
+    check_node_ids(nodes, num_nodes_, "grasp");
+    if (!path) fail<InvalidArgument>("grasp: the path is empty");
+    const Vec3 p0 = path(now);
+    if (!p0.allFinite()) fail<InvalidArgument>("grasp: path({}) is not finite", now);
+    std::vector<Vec3> offsets;
+    offsets.reserve(nodes.size());
+    for (Index i : nodes) offsets.push_back(u.segment<3>(3 * i) - p0);
+    return add(nodes, PrescribedMotion{[path](Scalar t, const Vec3&) { return path(t); }, {}, {}}, DofMask{},
+               std::move(offsets), "grasp");
   }
   /// Removes a set; its dofs become free (or fall back to an earlier set on the same dofs).
   void remove(ConstraintHandle h) {

@@ -7,6 +7,7 @@
 // kind, since a body force must pair with the mass matrix for a free body to fall at exactly g
 // (assembly/mass.hpp: consistent loads with the consistent mass, M_L g with the lumped one).
 #include <plastifem/assembly/mass.hpp>
+#include <plastifem/mesh/selection.hpp>
 #include <plastifem/solver/boundary.hpp>
 
 #include <string>
@@ -38,6 +39,48 @@ class Loads {
     Vec3 t;  ///< per unit reference area
   };
   using Definition = std::variant<NodalForces, BodyForce, Traction>;
+
+  // The definitions, from a user's input checked against the mesh (InvalidArgument says what is
+  // wrong, `what` naming the load).
+  static NodalForces nodal_force(const Mesh<E>& mesh, std::span<const Index> nodes, const Vec3& f) {
+    check_node_ids(nodes, mesh.num_nodes(), "nodal force");
+    check_finite(f, "nodal force");
+    return {{nodes.begin(), nodes.end()}, std::vector<Vec3>(nodes.size(), f)};
+  }
+  static NodalForces nodal_forces(const Mesh<E>& mesh, std::span<const Index> nodes, std::span<const Vec3> forces) {
+    const char* what = "nodal forces";
+    check_node_ids(nodes, mesh.num_nodes(), what);
+    if (forces.size() != nodes.size()) fail<InvalidArgument>("{}: {} forces for {} nodes", what, forces.size(), nodes.size());
+    for (const Vec3& f : forces) check_finite(f, "nodal force");
+    return {{nodes.begin(), nodes.end()}, {forces.begin(), forces.end()}};
+  }
+  /// A point force f at the rest position X: the consistent nodal loads f N_a(xi) of the element
+  /// containing X.
+  static NodalForces point_force(const Mesh<E>& mesh, const Vec3& X, const Vec3& f) {
+    check_finite(X, "point force position");
+    check_finite(f, "point force");
+    const auto where = locate_point(mesh, X);
+    if (!where)
+      fail<InvalidArgument>("point force: ({}, {}, {}) is in no element of the mesh (rest configuration)", X.x(), X.y(),
+                            X.z());
+    const auto Nxi = E::shape(where->xi);
+    const auto& c = mesh.element(where->element);
+    NodalForces n;
+    for (int a = 0; a < E::num_nodes; ++a)
+      if (Nxi[a] != 0) n.nodes.push_back(c[a]), n.forces.push_back(Nxi[a] * f);
+    return n;
+  }
+  static BodyForce body_force(const Vec3& g) {
+    check_finite(g, "gravity");
+    return {g};
+  }
+  static Traction traction(const Mesh<E>& mesh, const std::vector<FaceRef>& faces, const Vec3& t) {
+    check_finite(t, "traction");
+    for (const FaceRef& f : faces)
+      if (f.element < 0 || f.element >= mesh.num_elements() || f.face < 0 || f.face >= E::num_faces)
+        fail<InvalidArgument>("traction: face (element {}, local face {}) out of range", f.element, f.face);
+    return {faces, t};
+  }
 
   LoadHandle add(Definition def, LoadCurve curve, std::string what) {
     loads_.push_back({++next_id_, std::move(def), std::move(curve), std::move(what), Vector()});
@@ -85,6 +128,10 @@ class Loads {
   }
 
  private:
+  static void check_finite(const Vec3& v, const char* what) {
+    if (!v.allFinite()) fail<InvalidArgument>("{} must be finite, got ({}, {}, {})", what, v.x(), v.y(), v.z());
+  }
+
   struct Load {
     std::uint32_t id;
     Definition def;

@@ -9,6 +9,7 @@
 //   newmark.hpp, newton.hpp      the formulas, and one Newton loop for every nonlinear solve
 //   dynamics.hpp, statics.hpp    a Newmark step (accurate or real time), static load stepping
 //   step_control.hpp             automatic step cutting, commit only on success
+//   observables.hpp              forces, energies, reactions, tangent of a committed state
 //
 // A step or static solve that fails leaves the state bit for bit as it was, whatever failed
 // (Newton, CG, a NaN, an inverted element, an exception thrown by a load curve or a prescribed
@@ -22,8 +23,8 @@
 #include <plastifem/core/handle_owner.hpp>
 #include <plastifem/core/log.hpp>
 #include <plastifem/enrichment/enrichment_policy.hpp>
-#include <plastifem/mesh/selection.hpp>
 #include <plastifem/plastic/hooks.hpp>
+#include <plastifem/solver/observables.hpp>
 #include <plastifem/solver/statics.hpp>
 #include <plastifem/solver/step_control.hpp>
 
@@ -44,6 +45,7 @@ class Solver {
                                          "the EnrichmentModel concept)");
   static constexpr bool enriched = Enrich::active;
   using PlasticHooksType = PlasticHooks<Plastic, E, Elastic>;  // plastic/hooks.hpp
+  using LoadsType = Loads<E>;
 
  public:
   using Element = E;
@@ -162,13 +164,12 @@ class Solver {
   /// increments from the current state and load (solver/statics.hpp); velocity and
   /// acceleration are then zero.
   StepReport solve_static(int load_steps = 1);
-
   /// Advances by dt with Newmark's method (solver/dynamics.hpp). If a step fails it is redone
   /// as two half steps, recursively, up to settings().max_step_cuts times; throws SolverError,
   /// with the state unchanged, if even the smallest sub-step fails.
   StepReport step(Scalar dt);
 
-  // --- observables ------------------------------------------------------------------------
+  // --- observables (solver/observables.hpp) -------------------------------------------------
   Scalar kinetic_energy() const;
   /// Elastic strain energy summed over elements.
   Scalar strain_energy() const;
@@ -210,8 +211,11 @@ class Solver {
 
   /// Everything derived from the dof map, rebuilt after it changed.
   void rebuild();
-  void constraints_changed();
-  LoadHandle add_load(typename Loads<E>::Definition def, LoadCurve curve, std::string what);
+  /// A change of the constraint sets (`change()` makes it and returns the set's handle), then
+  /// what depends on them: the held dofs, the plastic anchors, the balance of the state.
+  template <class Change>
+  ConstraintHandle constrain(const char* what, Change&& change);
+  LoadHandle add_load(typename LoadsType::Definition def, LoadCurve curve, std::string what);
 
   /// Threads for element loops and matrix products (settings().threads, 0: OpenMP's default).
   int threads() const { return settings_.threads > 0 ? settings_.threads : max_threads(); }
@@ -219,7 +223,6 @@ class Solver {
     validate_settings(s);
     return s;
   }
-  void check_nodes(std::span<const Index> nodes, const char* what) const;
   /// Refuses a change of the simulation made from inside step() or solve_static().
   void check_not_solving(const char* what) const {
     if (solving_)
@@ -235,9 +238,6 @@ class Solver {
     Solving(const Solving&) = delete;
     Solving& operator=(const Solving&) = delete;
   };
-  static void check_finite(const Vec3& v, const char* what) {
-    if (!v.allFinite()) fail<InvalidArgument>("{} must be finite, got ({}, {}, {})", what, v.x(), v.y(), v.z());
-  }
 
   /// Brings the element data to state s's rest shapes (plastic flow); forgets what was derived
   /// from the old ones.
@@ -251,31 +251,28 @@ class Solver {
     if constexpr (enriched) cut_report_.plastic_frozen += plastic_.on_cut(body_.enrichment(), current_.plastic);
     dynamics_.invalidate();
   }
-
   /// X-FEM: the enriched dofs' share of a body force (empty without a cut).
-  typename Loads<E>::EnrichedBodyForce enriched_body_force() const {
+  typename LoadsType::EnrichedBodyForce enriched_body_force() const {
     if constexpr (enriched) {
       if (body_.has_cuts())
         return [this](const Vec3& g, MassKind kind, Vector& F) { body_.add_enriched_body_force(g, kind, F); };
     }
     return {};
   }
-  /// The enriched dofs of constrained nodes, held at zero in the directions the node is held
-  /// in and free in the others: a constraint holds the tissue on both sides of a cut through
-  /// its support (docs/xfem.md), with either enrichment, and a node held in z alone (a tray)
-  /// lets the cut open in x and y.
+  /// X-FEM: the enriched dofs of constrained nodes, held where the node is
+  /// (Enrichment::held_dofs).
   std::vector<Index> held_enriched_dofs() const;
-  CutReport cut_report_;
 
   SolverSettings settings_;
   Discretization<E, Elastic, enriched> body_;
   System<E, Elastic, enriched> system_;
   Constraints constraints_;
-  Loads<E> loads_;
+  LoadsType loads_;
   Dynamics<E, Elastic, enriched> dynamics_;
   Statics<E, Elastic, enriched> statics_;
   StateType current_, work_, trial_;
   PlasticHooksType plastic_;
+  CutReport cut_report_;
   HandleOwner cut_owner_;  ///< the number its cut handles carry (a cut handle of another solver is refused)
   /// True while step() or solve_static() runs. A load curve or a prescribed path is called
   /// during them; one that changes the solver (a cut, a constraint, a load, the state) would
@@ -285,156 +282,106 @@ class Solver {
   mutable Vector scratch_;
 };
 
+
+// Out of the class, so that a file built against plastifem::compiled (which declares the common
+// Solver types extern) neither instantiates nor optimises them: an extern template does not keep
+// a compiler from instantiating the members defined in the class, to inline them.
+
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material& material, SolverSettings settings,
                                             PlasticParamsType plastic_params)
     : settings_(validated(settings)), body_(mesh, material.validated()), system_(settings_),
       constraints_(mesh.num_nodes()), plastic_(plastic_params) {
-  if (const auto& unused = body_.mesh().report().unused_nodes; !unused.empty()) {
-    std::string ids;
-    for (size_t k = 0; k < unused.size() && k < 20; ++k) ids += fmt::format("{}{}", k ? ", " : "", unused[k]);
-    note(fmt::format("{} node{} no element uses ({}{}) {} held fixed and left out of the solve",
-                     unused.size(), unused.size() == 1 ? "" : "s", ids, unused.size() > 20 ? ", ..." : "",
-                     unused.size() == 1 ? "is" : "are"));
-  }
+  note_unused_nodes(body_.mesh().report());
   current_.reset(body_.num_dofs());
   current_.serial = ++serial_;
   plastic_.init(body_, current_.plastic);
   rebuild();
 }
 
+// --- set-up: each change through the part it changes, then what depends on it ----------------
+
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
-ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::prescribe(std::span<const Index> nodes, PrescribedMotion motion,
-                                                               DofMask mask) {
-  check_not_solving("prescribe");
-  check_nodes(nodes, "boundary condition");
-  const ConstraintHandle h = constraints_.add(nodes, std::move(motion), mask);
-  constraints_changed();
+template <class Change>
+ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::constrain(const char* what, Change&& change) {
+  check_not_solving(what);
+  const ConstraintHandle h = change();
+  system_.set_constrained(body_, constraints_.constrained_dofs(), held_enriched_dofs());
+  plastic_.constraints_changed(mesh().num_nodes(), [this](Index d) { return system_.constrained(d); });
+  current_.acceleration_known = false;
   return h;
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
-Scalar Solver<E, Elastic, Plastic, Enrich>::strain_energy() const {
-  return body_.strain_energy(current_.u);
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Scalar Solver<E, Elastic, Plastic, Enrich>::volume() const {
-  return body_.volume(current_.u);
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-std::vector<Mat3> Solver<E, Elastic, Plastic, Enrich>::element_stress() const {
-  return body_.element_stress(current_.u);
-}
-
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) {
-  check_not_solving("set_settings");
-  validate_settings(s);
-  // A new mass or damping changes the balance the committed acceleration satisfied.
-  const bool balance_changed = s.mass != settings_.mass || s.rayleigh_mass != settings_.rayleigh_mass ||
-                               s.rayleigh_stiffness != settings_.rayleigh_stiffness;
-  settings_ = s;
-  system_.set_settings(body_, settings_);
-  system_.set_threads(threads());
-  loads_.build(mesh(), material().density, settings_.mass, num_dofs(), enriched_body_force());
-  if (balance_changed) current_.acceleration_known = false;
-  dynamics_.invalidate();
+ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::prescribe(std::span<const Index> nodes, PrescribedMotion motion, DofMask mask) {
+  return constrain("prescribe", [&] { return constraints_.add(nodes, std::move(motion), mask); });
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::grasp(std::span<const Index> nodes, std::function<Vec3(Scalar)> path) {
-  check_not_solving("grasp");
-  check_nodes(nodes, "grasp");
-  if (!path) fail<InvalidArgument>("grasp: the path is empty");
-  const Vec3 p0 = path(time());
-  if (!p0.allFinite()) fail<InvalidArgument>("grasp: path({}) is not finite", time());
-  std::vector<Vec3> offsets;
-  for (Index i : nodes) offsets.push_back(displacement(i) - p0);
-  const ConstraintHandle h = constraints_.add(
-      nodes, PrescribedMotion{[path](Scalar t, const Vec3&) { return path(t); }, {}, {}}, DofMask{}, std::move(offsets));
-  constraints_changed();
-  return h;
+  return constrain("grasp", [&] { return constraints_.grasp(nodes, std::move(path), time(), current_.u); });
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::release(ConstraintHandle h) {
-  check_not_solving("release");
-  constraints_.remove(h);
-  constraints_changed();
+  constrain("release", [&] {
+    constraints_.remove(h);
+    return h;
+  });
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::replace(ConstraintHandle h, PrescribedMotion motion) {
-  check_not_solving("replace");
-  constraints_.replace(h, std::move(motion));
-  constraints_changed();
+  constrain("replace", [&] {
+    constraints_.replace(h, std::move(motion));
+    return h;
+  });
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename LoadsType::Definition def, LoadCurve curve, std::string what) {
+  check_not_solving("adding a load");
+  const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
+  loads_.build_last(mesh(), enriched_body_force());
+  current_.acceleration_known = false;
+  return h;
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_nodal_force(std::span<const Index> nodes, const Vec3& f, LoadCurve curve) {
-  check_nodes(nodes, "nodal force");
-  check_finite(f, "nodal force");
-  return add_load({typename Loads<E>::NodalForces{{nodes.begin(), nodes.end()}, std::vector<Vec3>(nodes.size(), f)}},
-                  std::move(curve), "nodal force");
+  return add_load(LoadsType::nodal_force(mesh(), nodes, f), std::move(curve), "nodal force");
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_nodal_forces(std::span<const Index> nodes, std::span<const Vec3> forces, LoadCurve curve) {
-  check_nodes(nodes, "nodal forces");
-  if (forces.size() != nodes.size())
-    fail<InvalidArgument>("nodal forces: {} forces for {} nodes", forces.size(), nodes.size());
-  for (const Vec3& f : forces) check_finite(f, "nodal force");
-  return add_load({typename Loads<E>::NodalForces{{nodes.begin(), nodes.end()}, {forces.begin(), forces.end()}}},
-                  std::move(curve), "nodal forces");
+  return add_load(LoadsType::nodal_forces(mesh(), nodes, forces), std::move(curve), "nodal forces");
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_point_force(const Vec3& X, const Vec3& f, LoadCurve curve) {
-  check_finite(X, "point force position");
-  check_finite(f, "point force");
-  const auto where = locate_point(mesh(), X);
-  if (!where)
-    fail<InvalidArgument>("point force: ({}, {}, {}) is in no element of the mesh (rest configuration)", X.x(), X.y(),
-                          X.z());
-  const auto Nxi = E::shape(where->xi);
-  const auto& c = mesh().element(where->element);
-  std::vector<Index> nodes;
-  std::vector<Vec3> forces;
-  for (int a = 0; a < N; ++a)
-    if (Nxi[a] != 0) nodes.push_back(c[a]), forces.push_back(Nxi[a] * f);
-  return add_load({typename Loads<E>::NodalForces{std::move(nodes), std::move(forces)}}, std::move(curve), "point force");
+  return add_load(LoadsType::point_force(mesh(), X, f), std::move(curve), "point force");
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_gravity(const Vec3& g, LoadCurve curve) {
-  check_finite(g, "gravity");
-  return add_load({typename Loads<E>::BodyForce{g}}, std::move(curve), "gravity");
+  return add_load(LoadsType::body_force(g), std::move(curve), "gravity");
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_traction(const std::vector<FaceRef>& faces, const Vec3& t, LoadCurve curve) {
-  check_finite(t, "traction");
-  for (const FaceRef& f : faces)
-    if (f.element < 0 || f.element >= mesh().num_elements() || f.face < 0 || f.face >= E::num_faces)
-      fail<InvalidArgument>("traction: face (element {}, local face {}) out of range", f.element, f.face);
-  return add_load({typename Loads<E>::Traction{faces, t}}, std::move(curve), "traction");
+  return add_load(LoadsType::traction(mesh(), faces, t), std::move(curve), "traction");
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -453,6 +400,25 @@ void Solver<E, Elastic, Plastic, Enrich>::clear_loads() {
   current_.acceleration_known = false;
 }
 
+// --- cutting, state, plasticity -------------------------------------------------------------
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::nodal_displacements() const {
+  if constexpr (enriched) {
+    if constexpr (!vanishes_at_nodes<Enrich>())
+      return body_.enrichment().nodal_displacements(current_.u, mesh().num_nodes(), &Enrich::psi);
+  }
+  return Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+std::vector<Index> Solver<E, Elastic, Plastic, Enrich>::held_enriched_dofs() const {
+  if constexpr (enriched) return body_.enrichment().held_dofs(constraints_.constrained_dofs(), mesh().num_nodes());
+  return {};
+}
+
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Index Solver<E, Elastic, Plastic, Enrich>::add_dof_slot(Index node) {
@@ -465,9 +431,105 @@ Index Solver<E, Elastic, Plastic, Enrich>::add_dof_slot(Index node) {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::positions() const {
-  Eigen::Matrix3Xd x = mesh().nodes();
-  x += Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
-  return x;
+  return mesh().nodes() + Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::set_acceleration(const Vector& a) {
+  check_not_solving("set_acceleration");
+  if (a.size() != num_dofs() || !a.allFinite()) fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
+  current_.a = a;
+  current_.acceleration_known = true;
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::set_plastic_params(const PlasticParamsType& p) {
+  check_not_solving("set_plastic_params");
+  plastic_.set_params(p, current_.plastic);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::material_positions() const {
+  return PlasticHooksType::material_positions(current_.plastic, mesh().nodes());
+}
+
+// --- observables (solver/observables.hpp) ------------------------------------------------------
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::kinetic_energy() const {
+  return observables::kinetic_energy(system_, current_.v, scratch_, threads());
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::strain_energy() const {
+  return body_.strain_energy(current_.u);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::external_work_potential() const {
+  return observables::external_work_potential(loads_, time(), current_.u);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Scalar Solver<E, Elastic, Plastic, Enrich>::volume() const {
+  return body_.volume(current_.u);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Vector Solver<E, Elastic, Plastic, Enrich>::reaction_forces() const {
+  return observables::reaction_forces(body_, system_, loads_, settings_, current_, threads());
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Vector Solver<E, Elastic, Plastic, Enrich>::internal_force() const {
+  return observables::internal_force(body_, current_.u, threads());
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+SparseMatrix Solver<E, Elastic, Plastic, Enrich>::tangent() const {
+  const bool exact = has_exact_tangent_v<Elastic> && settings_.newton.exact_tangent;
+  return observables::tangent(body_, current_.u, exact ? TangentKind::Exact : TangentKind::Projected, threads());
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+std::vector<Mat3> Solver<E, Elastic, Plastic, Enrich>::element_stress() const {
+  return body_.element_stress(current_.u);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Vector Solver<E, Elastic, Plastic, Enrich>::von_mises_stress() const {
+  return observables::von_mises_stress(element_stress());
+}
+
+// --- the changes of the whole simulation (settings, state, dof map, cuts) and the two ways of
+// solving, each a transaction on a working copy of the state ----------------------------------
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) {
+  check_not_solving("set_settings");
+  validate_settings(s);
+  // A new mass or damping changes the balance the committed acceleration satisfied.
+  const bool balance_changed = s.mass != settings_.mass || s.rayleigh_mass != settings_.rayleigh_mass ||
+                               s.rayleigh_stiffness != settings_.rayleigh_stiffness;
+  settings_ = s;
+  system_.set_settings(body_, settings_);
+  system_.set_threads(threads());
+  loads_.build(mesh(), material().density, settings_.mass, num_dofs(), enriched_body_force());
+  if (balance_changed) current_.acceleration_known = false;
+  dynamics_.invalidate();
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -490,12 +552,45 @@ void Solver<E, Elastic, Plastic, Enrich>::set_state(const Vector& u, const Vecto
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::set_acceleration(const Vector& a) {
-  check_not_solving("set_acceleration");
-  if (a.size() != num_dofs() || !a.allFinite())
-    fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
-  current_.a = a;
-  current_.acceleration_known = true;
+void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
+  plastic_.pattern_changed();
+  body_.rebuild();
+  const Index n = body_.num_dofs();
+  system_.rebuild(body_, settings_, constraints_.constrained_dofs(), held_enriched_dofs());
+  system_.set_threads(threads());
+  loads_.build(mesh(), material().density, settings_.mass, n, enriched_body_force());
+  current_.grow(n);
+  work_.reset(n), trial_.reset(n);
+  dynamics_.resize(n);
+  scratch_.resize(n);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOptions options)
+  requires Enrich::active
+{
+  check_not_solving("cut");
+  int id = -1;
+  cut_report_ = body_.cut(surface, options, &Enrich::psi, -1, id, PlasticHooksType::rest_positions(current_.plastic));
+  cut_applied();
+  return CutHandle{id, cut_owner_.id()};
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surface, CutOptions options)
+  requires Enrich::active
+{
+  check_not_solving("grow_cut");
+  if (h.id < 0 || h.owner == 0) fail<InvalidArgument>("grow_cut: an invalid cut handle (a default handle names no cut)");
+  if (h.owner != cut_owner_.id())
+    fail<InvalidArgument>("grow_cut: cut handle {} belongs to another solver: a handle names a cut of the solver that "
+                          "issued it",
+                          h.id);
+  int id = -1;
+  cut_report_ = body_.cut(surface, options, &Enrich::psi, h.id, id, PlasticHooksType::rest_positions(current_.plastic));
+  if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) cut_applied();
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -533,12 +628,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
   check_not_solving("step");
   const auto t0 = std::chrono::steady_clock::now();
-  if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
-  if (!std::isfinite(current_.t + dt) || current_.t + dt == current_.t)
-    fail<InvalidArgument>("time step dt = {} is lost in the round-off of t = {}", dt, current_.t);
-  if (const Scalar c0 = Newmark{settings_.newmark.beta, settings_.newmark.gamma, dt}.c0(); !std::isfinite(c0))
-    fail<InvalidArgument>("time step dt = {} is too small: the Newmark coefficient 1 / (beta dt^2) = {} overflows", dt,
-                          c0);
+  check_time_step(dt, current_.t, settings_.newmark);
   const Solving solving(solving_);
   auto p = parts();
   StepReport r;
@@ -558,194 +648,8 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
   r.plastic.wall_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_sync).count();
   r.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   note_switched_off(r.plastic, time(), mesh().num_elements());
-  if (r.path_jumps > 0)
-    note(fmt::format("t = {}: the prescribed path (or given velocity) of {} constrained node(s) jumps at the end of "
-                     "a step; they jump with it and move on at the path's velocity after the jump "
-                     "(StepReport::path_jumps)",
-                     time(), r.path_jumps));
+  note_path_jumps(r, time());
   return r;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Scalar Solver<E, Elastic, Plastic, Enrich>::kinetic_energy() const {
-  system_.M.multiply(current_.v, scratch_, threads());
-  return 0.5 * current_.v.dot(scratch_);
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Scalar Solver<E, Elastic, Plastic, Enrich>::external_work_potential() const {
-  Vector f(num_dofs());
-  loads_.assemble(time(), f);
-  return f.dot(current_.u);
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Vector Solver<E, Elastic, Plastic, Enrich>::reaction_forces() const {
-  Vector f(num_dofs()), fe(num_dofs()), r(num_dofs()), w(num_dofs());
-  // The damping's stiffness at the current state (solver/dynamics.hpp), in the same assembly.
-  BlockSymmetricMatrix Kd;
-  if (settings_.rayleigh_stiffness != 0) Kd = body_.assembler().zero_matrix();
-  body_.assemble(current_.u, f, settings_.rayleigh_stiffness != 0 ? &Kd : nullptr, TangentKind::Projected, threads());
-  loads_.assemble(time(), fe);
-  system_.M.multiply(current_.a, r, threads());
-  r += f - fe;
-  if (settings_.rayleigh_mass != 0) {
-    system_.M.multiply(current_.v, w, threads());
-    r += settings_.rayleigh_mass * w;
-  }
-  if (settings_.rayleigh_stiffness != 0) {
-    Kd.multiply(current_.v, w, threads());
-    r += settings_.rayleigh_stiffness * w;
-  }
-  for (Index i = 0; i < num_dofs(); ++i)
-    if (!system_.constrained(i)) r[i] = 0;
-  return r;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Vector Solver<E, Elastic, Plastic, Enrich>::internal_force() const {
-  Vector f(num_dofs());
-  body_.assemble(current_.u, f, nullptr, TangentKind::Projected, threads());
-  return f;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-SparseMatrix Solver<E, Elastic, Plastic, Enrich>::tangent() const {
-  BlockSymmetricMatrix K = body_.assembler().zero_matrix();
-  Vector f(num_dofs());
-  const bool exact = has_exact_tangent_v<Elastic> && settings_.newton.exact_tangent;
-  body_.assemble(current_.u, f, &K, exact ? TangentKind::Exact : TangentKind::Projected, threads());
-  return K.to_sparse();
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Vector Solver<E, Elastic, Plastic, Enrich>::von_mises_stress() const {
-  const auto s = element_stress();
-  Vector vm(static_cast<Index>(s.size()));
-  for (size_t e = 0; e < s.size(); ++e) vm[static_cast<Index>(e)] = von_mises(s[e]);
-  return vm;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
-  plastic_.pattern_changed();
-  body_.rebuild();
-  const Index n = body_.num_dofs();
-  system_.rebuild(body_, settings_, constraints_.constrained_dofs(), held_enriched_dofs());
-  system_.set_threads(threads());
-  loads_.build(mesh(), material().density, settings_.mass, n, enriched_body_force());
-  current_.grow(n);
-  work_.reset(n), trial_.reset(n);
-  dynamics_.resize(n);
-  scratch_.resize(n);
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::constraints_changed() {
-  system_.set_constrained(body_, constraints_.constrained_dofs(), held_enriched_dofs());
-  plastic_.constraints_changed(mesh().num_nodes(), [this](Index d) { return system_.constrained(d); });
-  current_.acceleration_known = false;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename Loads<E>::Definition def, LoadCurve curve, std::string what) {
-  check_not_solving("adding a load");
-  const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
-  loads_.build_last(mesh(), enriched_body_force());
-  current_.acceleration_known = false;
-  return h;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::set_plastic_params(const PlasticParamsType& p) {
-  check_not_solving("set_plastic_params");
-  plastic_.set_params(p, current_.plastic);
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::material_positions() const {
-  return PlasticHooksType::material_positions(current_.plastic, mesh().nodes());
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-CutHandle Solver<E, Elastic, Plastic, Enrich>::cut(const Cut& surface, CutOptions options)
-  requires Enrich::active
-{
-  check_not_solving("cut");
-  int id = -1;
-  cut_report_ = body_.cut(surface, options, &Enrich::psi, -1, id, PlasticHooksType::rest_positions(current_.plastic));
-  cut_applied();
-  return CutHandle{id, cut_owner_.id()};
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::grow_cut(CutHandle h, const Cut& surface, CutOptions options)
-  requires Enrich::active
-{
-  check_not_solving("grow_cut");
-  if (h.id < 0 || h.owner == 0) fail<InvalidArgument>("grow_cut: an invalid cut handle (a default handle names no cut)");
-  if (h.owner != cut_owner_.id())
-    fail<InvalidArgument>("grow_cut: cut handle {} belongs to another solver: a handle names a cut of the solver that "
-                          "issued it",
-                          h.id);
-  int id = -1;
-  cut_report_ = body_.cut(surface, options, &Enrich::psi, h.id, id, PlasticHooksType::rest_positions(current_.plastic));
-  if (cut_report_.dofs_added > 0 || cut_report_.cut_elements > 0) cut_applied();
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-std::vector<Index> Solver<E, Elastic, Plastic, Enrich>::held_enriched_dofs() const {
-  std::vector<Index> held;
-  if constexpr (enriched) {
-    const auto& constrained = constraints_.constrained_dofs();
-    // Per component: a node held in z only (a sheet on a tray) keeps its pieces free to part in
-    // x and y; holding every enriched component kept a crack through it shut.
-    for (Index i = 0; i < mesh().num_nodes(); ++i)
-      for (int d = 0; d < 3; ++d)
-        if (3 * i + d < static_cast<Index>(constrained.size()) && constrained[3 * i + d])
-          for (Index r : body_.enrichment().rows_of(i)) held.push_back(3 * r + d);
-  }
-  return held;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::nodal_displacements() const {
-  Eigen::Matrix3Xd u = Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
-  if constexpr (enriched) {
-    if constexpr (!vanishes_at_nodes<Enrich>()) {  // u_i + psi(H_i, H_i) a_i
-      const auto& enr = body_.enrichment();
-      for (int c = 0; c < enr.num_cuts(); ++c)
-        for (Index i = 0; i < mesh().num_nodes(); ++i)
-          if (const Index r = enr.row(c, i); r >= 0) {
-            const Scalar h = enr.sign(c, i);
-            u.col(i) += Enrich::psi(h, h) * current_.u.template segment<3>(3 * r);
-          }
-    }
-  }
-  return u;
-}
-
-template <FiniteElement E, class Elastic, class Plastic, class Enrich>
-  requires ElasticModel<Elastic, E>
-void Solver<E, Elastic, Plastic, Enrich>::check_nodes(std::span<const Index> nodes, const char* what) const {
-  for (Index i : nodes)
-    if (i < 0 || i >= mesh().num_nodes())
-      fail<InvalidArgument>("{}: node {} out of range [0, {})", what, i, mesh().num_nodes());
 }
 
 }  // namespace plastifem

@@ -8,6 +8,8 @@
 // stepping does in statics; the sub-steps advance a working copy, committed by a swap when the
 // last one succeeded. Whatever is thrown, by the solver or by a user's load curve, prescribed
 // path or policy, and at whatever sub-step, the committed state has not been touched.
+#include <plastifem/core/log.hpp>
+#include <plastifem/solver/newmark.hpp>
 #include <plastifem/solver/settings.hpp>
 
 #include <cmath>
@@ -15,6 +17,26 @@
 #include <string>
 
 namespace plastifem {
+
+/// Refuses a time step dt from time t that is not finite and positive, that t's round-off
+/// would lose, or whose Newmark coefficient 1 / (beta dt^2) overflows.
+inline void check_time_step(Scalar dt, Scalar t, const NewmarkSettings& nm) {
+  if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
+  if (!std::isfinite(t + dt) || t + dt == t)
+    fail<InvalidArgument>("time step dt = {} is lost in the round-off of t = {}", dt, t);
+  if (const Scalar c0 = Newmark{nm.beta, nm.gamma, dt}.c0(); !std::isfinite(c0))
+    fail<InvalidArgument>("time step dt = {} is too small: the Newmark coefficient 1 / (beta dt^2) = {} overflows", dt,
+                          c0);
+}
+
+/// Tells the user about a step whose prescribed paths jumped (StepReport::path_jumps).
+inline void note_path_jumps(const StepReport& r, Scalar t) {
+  if (r.path_jumps > 0)
+    note(fmt::format("t = {}: the prescribed path (or given velocity) of {} constrained node(s) jumps at the end of "
+                     "a step; they jump with it and move on at the path's velocity after the jump "
+                     "(StepReport::path_jumps)",
+                     t, r.path_jumps));
+}
 
 /// One (sub-)step of dt from work, cut in halves on failure while depth < max_cuts.
 template <class StateT, class Attempt>

@@ -9,6 +9,7 @@
 // Newton increment is zero there (u already holds the prescribed value; an uncoupled row stays
 // at zero, carrying no mass and no stiffness).
 #include <plastifem/assembly/discretization.hpp>
+#include <plastifem/core/log.hpp>
 #include <plastifem/solver/boundary.hpp>
 #include <plastifem/solver/settings.hpp>
 
@@ -17,6 +18,17 @@
 #include <utility>
 
 namespace plastifem {
+
+/// Tells the user about the nodes no element uses, which the system holds fixed.
+inline void note_unused_nodes(const MeshReport& report) {
+  const auto& unused = report.unused_nodes;
+  if (unused.empty()) return;
+  std::string ids;
+  for (size_t k = 0; k < unused.size() && k < 20; ++k) ids += fmt::format("{}{}", k ? ", " : "", unused[k]);
+  note(fmt::format("{} node{} no element uses ({}{}) {} held fixed and left out of the solve", unused.size(),
+                   unused.size() == 1 ? "" : "s", ids, unused.size() > 20 ? ", ..." : "",
+                   unused.size() == 1 ? "is" : "are"));
+}
 
 template <FiniteElement E, class Elastic, bool Enriched = false>
 class System {
