@@ -104,7 +104,9 @@ Mesh<Hex8> box_hex8(const BoxSpec& b) {
 }
 
 /// Wedge6 grid: each cell split into 2 prisms along the diagonal of its z faces from (0,0) to
-/// (1,1), the same in every cell, so neighbours' faces match.
+/// (1,1), the same in every cell, so neighbours' faces match. (Their sub-tetrahedra, which the
+/// X-FEM integrates on, split a shared quadrilateral face by local numbering and so can meet a
+/// neighbour's by the other diagonal: docs/xfem.md.)
 template <class = void>
 Mesh<Wedge6> box_wedge6(const BoxSpec& b) {
   detail::check_box(b);
@@ -252,13 +254,57 @@ struct QuadSurface {
   std::vector<std::array<Index, 4>> quads;
 };
 
+namespace detail {
+
+inline void check_shell(Scalar thickness, int layers) {
+  if (layers < 1) fail<InvalidArgument>("thick shell needs at least one layer, got {}", layers);
+  if (!(std::abs(thickness) > 0) || !std::isfinite(thickness))
+    fail<InvalidArgument>("thick shell thickness must be finite and non-zero, got {}", thickness);
+}
+
+/// A thick shell's cells: `layers + 1` copies of the surface's nodes offset along their unit
+/// normals by `thickness * l / layers`, and over each surface face f one cell per layer,
+/// `cell(f, a, b)`, whose face 0 lies on the node layer starting at id a and face 1 on the one at
+/// b. The surface is face 0 of the first layer when the offset follows the normals, face 1
+/// otherwise (the cell's bottom is then the offset side). Node and face sets "bottom" (the
+/// surface) and "top" (its offset).
+template <FiniteElement E, class Face, class Cell>
+Mesh<E> stack_shell_layers(const Eigen::Matrix3Xd& surface, const Eigen::Matrix3Xd& normal,
+                           const std::vector<Face>& faces, Scalar thickness, int layers, Cell cell) {
+  const Index n = static_cast<Index>(surface.cols());
+  Eigen::Matrix3Xd X(3, n * (layers + 1));
+  for (int l = 0; l <= layers; ++l) X.middleCols(l * n, n) = surface + normal * (thickness * l / layers);
+  std::vector<typename Mesh<E>::Connectivity> cells;
+  cells.reserve(faces.size() * static_cast<size_t>(layers));
+  for (int l = 0; l < layers; ++l)
+    for (const Face& f : faces) {
+      const Index lo = l * n, hi = (l + 1) * n;
+      cells.push_back(thickness > 0 ? cell(f, lo, hi) : cell(f, hi, lo));
+    }
+  Mesh<E> mesh(std::move(X), std::move(cells));
+  std::vector<Index> bottom(static_cast<size_t>(n)), top(static_cast<size_t>(n));
+  for (Index v = 0; v < n; ++v) bottom[static_cast<size_t>(v)] = v, top[static_cast<size_t>(v)] = layers * n + v;
+  const int bottom_face = thickness > 0 ? 0 : 1, top_face = 1 - bottom_face;
+  std::vector<FaceRef> fb, ft;
+  const Index nf = static_cast<Index>(faces.size());
+  for (Index f = 0; f < nf; ++f) {
+    fb.push_back({f, bottom_face});
+    ft.push_back({(layers - 1) * nf + f, top_face});
+  }
+  mesh.add_node_set("bottom", std::move(bottom));
+  mesh.add_node_set("top", std::move(top));
+  mesh.add_face_set("bottom", std::move(fb));
+  mesh.add_face_set("top", std::move(ft));
+  return mesh;
+}
+
+}  // namespace detail
+
 /// Thick shell: the surface offset along its (area-weighted, averaged) vertex normals by
 /// `thickness` in `layers` Hex8 layers. Negative thickness offsets against the normals.
 template <class = void>
 Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int layers) {
-  if (layers < 1) fail<InvalidArgument>("thick shell needs at least one layer, got {}", layers);
-  if (!(std::abs(thickness) > 0) || !std::isfinite(thickness))
-    fail<InvalidArgument>("thick shell thickness must be finite and non-zero, got {}", thickness);
+  detail::check_shell(thickness, layers);
   const Index n = static_cast<Index>(s.nodes.cols());
   Eigen::Matrix3Xd normal = Eigen::Matrix3Xd::Zero(3, n);
   for (size_t q = 0; q < s.quads.size(); ++q) {
@@ -274,33 +320,12 @@ Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int layers) 
     if (!(len > 0)) fail<MeshError>("surface node {} belongs to no quad or has no defined normal", v);
     normal.col(v) /= len;
   }
-  Eigen::Matrix3Xd X(3, n * (layers + 1));
-  for (int l = 0; l <= layers; ++l) X.middleCols(l * n, n) = s.nodes + normal * (thickness * l / layers);
-  std::vector<Mesh<Hex8>::Connectivity> hexes;
-  hexes.reserve(s.quads.size() * layers);
-  for (int l = 0; l < layers; ++l)
-    for (const auto& f : s.quads) {
-      const Index lo = l * n, hi = (l + 1) * n;
-      if (thickness > 0)
-        hexes.push_back({f[0] + lo, f[1] + lo, f[2] + lo, f[3] + lo, f[0] + hi, f[1] + hi, f[2] + hi, f[3] + hi});
-      else  // offset against the normal: the offset layer is the hex's bottom
-        hexes.push_back({f[0] + hi, f[1] + hi, f[2] + hi, f[3] + hi, f[0] + lo, f[1] + lo, f[2] + lo, f[3] + lo});
-    }
-  Mesh<Hex8> mesh(std::move(X), std::move(hexes));
-  std::vector<Index> bottom(n), top(n);
-  for (Index v = 0; v < n; ++v) bottom[v] = v, top[v] = layers * n + v;
-  const int bottom_face = thickness > 0 ? 0 : 1, top_face = 1 - bottom_face;  // Hex8 faces 0 / 1
-  std::vector<FaceRef> fb, ft;
-  const Index nq = static_cast<Index>(s.quads.size());
-  for (Index q = 0; q < nq; ++q) {
-    fb.push_back({q, bottom_face});
-    ft.push_back({(layers - 1) * nq + q, top_face});
-  }
-  mesh.add_node_set("bottom", std::move(bottom));
-  mesh.add_node_set("top", std::move(top));
-  mesh.add_face_set("bottom", std::move(fb));
-  mesh.add_face_set("top", std::move(ft));
-  return mesh;
+  // Hex8's faces 0 and 1 are its bottom 0-1-2-3 and top 4-5-6-7.
+  return detail::stack_shell_layers<Hex8>(s.nodes, normal, s.quads, thickness, layers,
+                                          [](const std::array<Index, 4>& f, Index a, Index b) {
+                                            return Mesh<Hex8>::Connectivity{f[0] + a, f[1] + a, f[2] + a, f[3] + a,
+                                                                            f[0] + b, f[1] + b, f[2] + b, f[3] + b};
+                                          });
 }
 
 /// Thick shell of prisms: the triangulated surface offset along its (area-weighted, averaged)
@@ -309,43 +334,20 @@ Mesh<Hex8> thick_shell_hex8(const QuadSurface& s, Scalar thickness, int layers) 
 /// (the surface itself) and "top" (its offset), as thick_shell_hex8.
 template <class = void>
 Mesh<Wedge6> thick_shell_wedge6(const TriangleSurface& s, Scalar thickness, int layers) {
-  if (layers < 1) fail<InvalidArgument>("thick shell needs at least one layer, got {}", layers);
-  if (!(std::abs(thickness) > 0) || !std::isfinite(thickness))
-    fail<InvalidArgument>("thick shell thickness must be finite and non-zero, got {}", thickness);
+  detail::check_shell(thickness, layers);
   check_surface(s, "thick shell surface");
   const Index n = s.num_vertices();
   Eigen::Matrix3Xd normal;
   vertex_normals(s, s.vertices, normal);
   for (Index v = 0; v < n; ++v)
     if (!(normal.col(v).norm() > 0)) fail<MeshError>("surface vertex {} belongs to no triangle or has no defined normal", v);
-  Eigen::Matrix3Xd X(3, n * (layers + 1));
-  for (int l = 0; l <= layers; ++l) X.middleCols(l * n, n) = s.vertices + normal * (thickness * l / layers);
-  std::vector<Mesh<Wedge6>::Connectivity> prisms;
-  prisms.reserve(s.triangles.size() * static_cast<size_t>(layers));
-  for (int l = 0; l < layers; ++l)
-    for (const Triangle& t : s.triangles) {
-      // The triangle reversed: a prism's bottom triangle faces away from its top (VTK's order).
-      const Index lo = l * n, hi = (l + 1) * n;
-      if (thickness > 0)
-        prisms.push_back({t[0] + lo, t[2] + lo, t[1] + lo, t[0] + hi, t[2] + hi, t[1] + hi});
-      else  // offset against the normal: the offset layer is the prism's bottom
-        prisms.push_back({t[0] + hi, t[2] + hi, t[1] + hi, t[0] + lo, t[2] + lo, t[1] + lo});
-    }
-  Mesh<Wedge6> mesh(std::move(X), std::move(prisms));
-  std::vector<Index> bottom(static_cast<size_t>(n)), top(static_cast<size_t>(n));
-  for (Index v = 0; v < n; ++v) bottom[static_cast<size_t>(v)] = v, top[static_cast<size_t>(v)] = layers * n + v;
-  const int bottom_face = thickness > 0 ? 0 : 1, top_face = 1 - bottom_face;  // Wedge6 faces 0 / 1
-  std::vector<FaceRef> fb, ft;
-  const Index nt = s.num_triangles();
-  for (Index t = 0; t < nt; ++t) {
-    fb.push_back({t, bottom_face});
-    ft.push_back({(layers - 1) * nt + t, top_face});
-  }
-  mesh.add_node_set("bottom", std::move(bottom));
-  mesh.add_node_set("top", std::move(top));
-  mesh.add_face_set("bottom", std::move(fb));
-  mesh.add_face_set("top", std::move(ft));
-  return mesh;
+  // Wedge6's faces 0 and 1 are its triangles; each is the surface triangle reversed, because a
+  // prism's bottom triangle faces away from its top (VTK's order).
+  return detail::stack_shell_layers<Wedge6>(s.vertices, normal, s.triangles, thickness, layers,
+                                            [](const Triangle& t, Index a, Index b) {
+                                              return Mesh<Wedge6>::Connectivity{t[0] + a, t[2] + a, t[1] + a,
+                                                                                t[0] + b, t[2] + b, t[1] + b};
+                                            });
 }
 
 /// Cylindrical tube along x (a vessel): inner radius r_in, outer r_out, length L; n_circ cells
