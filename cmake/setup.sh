@@ -75,12 +75,15 @@ sanitize_tests=(test_elements test_mesh test_io test_assembly test_linear_solver
                 test_state test_solver test_grasp test_defects)
 if [ "$what" = sanitize ]; then
   san="-O1 -g1 -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer"
-  cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="$san" \
-        -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
-        -DPLASTIFEM_BUILD_EXAMPLES=OFF -DPLASTIFEM_BUILD_BENCH=OFF -DPLASTIFEM_COMPILED_POLICIES=OFF
   targets=()
   for t in "${sanitize_tests[@]}"; do [ -f "tests/$t.cpp" ] && targets+=("$t"); done
-  cmake --build "$build" -j "$jobs" --target "${targets[@]}"
+  # PLASTIFEM_TEST_ONLY: only these tests exist in this build, and plastifem_tests builds them
+  # in parallel (several --target names are built one after another).
+  cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="$san" \
+        -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
+        -DPLASTIFEM_BUILD_EXAMPLES=OFF -DPLASTIFEM_BUILD_BENCH=OFF -DPLASTIFEM_COMPILED_POLICIES=OFF \
+        -DPLASTIFEM_TEST_ONLY="$(IFS=';'; echo "${targets[*]}")"
+  cmake --build "$build" -j "$jobs" --target plastifem_tests
   regex="^($(IFS='|'; echo "${targets[*]}")):"
   # Every target must register cases: a name pattern that matches nothing would make this stage
   # pass without running anything (it once ran 3 of its 124 cases).
@@ -95,7 +98,8 @@ if [ "$what" = sanitize ]; then
   exit 0
 fi
 
-cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DPLASTIFEM_BUILD_LIVE=ON
+# PLASTIFEM_TEST_ONLY= : every test, whatever an earlier configure of this directory asked for.
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release -DPLASTIFEM_BUILD_LIVE=ON -DPLASTIFEM_TEST_ONLY=
 case "$what" in
   live)  # the live demo: bash cmake/setup.sh live [--port N] [--scene organ|fat|sheet] ...
     cmake --build "$build" -j "$jobs" --target live
@@ -115,7 +119,7 @@ case "$what" in
     "$build/examples/cantilever" --out "$build/out" ;;
   scenes)  # the five surgical scenes, each run to its end (docs/scenes.md)
     scenes=(fat_grasp vessel_twist liver_cage liver_cut sheet_tear)
-    cmake --build "$build" -j "$jobs" --target "${scenes[@]}"
+    cmake --build "$build" -j "$jobs" --target surgical_scenes
     for scene in "${scenes[@]}"; do
       echo "setup: $scene"
       "$build/examples/$scene" --out "$build/out/$scene" | tail -n 4
@@ -137,7 +141,7 @@ case "$what" in
     which=step; args=("${@:2}")
     case "${2:-}" in step|static|policy|io) which=$2; args=("${@:3}") ;; esac
     if [ "${2:-}" = scenes ]; then
-      cmake --build "$build" -j "$jobs" --target fat_grasp vessel_twist liver_cage liver_cut sheet_tear
+      cmake --build "$build" -j "$jobs" --target surgical_scenes
       mkdir -p "$build/bench"
       bash bench/scenes.sh "$build" "$build/bench/scenes.csv" "${@:3}"
       exit 0
