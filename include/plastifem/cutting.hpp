@@ -9,6 +9,7 @@
 #include <plastifem/enrichment/enrichment_policy.hpp>
 #include <plastifem/enrichment/heaviside.hpp>
 #include <plastifem/enrichment/shifted.hpp>
+#include <plastifem/solver/instantiations.hpp>
 
 namespace plastifem {
 static_assert(EnrichmentModel<Heaviside> && EnrichmentModel<ShiftedHeaviside>);

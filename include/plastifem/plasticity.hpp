@@ -7,6 +7,7 @@
 #include <plastifem/plastic/cell_centered.hpp>
 #include <plastifem/plastic/plastic.hpp>
 #include <plastifem/plastic/vertex_blended.hpp>
+#include <plastifem/solver/instantiations.hpp>
 
 namespace plastifem {
 static_assert(PlasticModel<VertexBlended> && PlasticModel<CellCentered>);

@@ -6,11 +6,13 @@
 // A file using one Solver<Hex8, Corotational> and stepping it compiles in a third of the time
 // (docs/build_time.md). Other compositions are instantiated where they are used, as usual.
 //
-// This file is the one list of compositions:
+// This file is the one list of compositions, macros only (it includes nothing, so a test can
+// take its lists without compiling the Solver):
 // - the library's source files, which CMake generates from it (one per element, through
 //   src/instantiate.hpp), instantiate it;
-// - the policy headers (<plastifem/plasticity.hpp>, <plastifem/cutting.hpp>) declare its plastic
-//   and cut types extern;
+// - solver_members.hpp (included at the end of solver.hpp) declares its elastic types extern,
+//   the policy headers (<plastifem/plasticity.hpp>, <plastifem/cutting.hpp>) its plastic and cut
+//   types;
 // - the tests take their element and composition lists from it (tests/compositions.hpp): the
 //   per-composition test runs every entry, and every test of "each element" runs each element.
 // A new elastic model is one entry in PLASTIFEM_MODELS (and in PLASTIFEM_POLICY_MODELS to be
@@ -59,12 +61,3 @@
   PLASTIFEM_FOR_EACH_ELEMENT(PLASTIFEM_PLASTIC_SOLVERS_OF, X) PLASTIFEM_PLASTIC_SOLVERS_OF_HEX8_MEAN_DILATATION(X)
 #define PLASTIFEM_ENRICHED_SOLVERS(X) PLASTIFEM_FOR_EACH_ELEMENT(PLASTIFEM_ENRICHED_SOLVERS_OF, X)
 #define PLASTIFEM_PLASTIC_ENRICHED_SOLVERS(X) PLASTIFEM_FOR_EACH_ELEMENT(PLASTIFEM_PLASTIC_ENRICHED_SOLVERS_OF, X)
-
-// The extern declarations of the elastic types are here; those of the plastic and cut types are
-// in <plastifem/plasticity.hpp> and <plastifem/cutting.hpp>, which define those policies (the
-// plastic and cut ones in whichever of the two is included second).
-#ifdef PLASTIFEM_USE_COMPILED
-#define PLASTIFEM_EXTERN_SOLVER(E, M) extern template class plastifem::Solver<plastifem::E, plastifem::M>;
-PLASTIFEM_ELASTIC_SOLVERS(PLASTIFEM_EXTERN_SOLVER)
-#undef PLASTIFEM_EXTERN_SOLVER
-#endif
