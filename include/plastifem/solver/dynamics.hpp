@@ -192,14 +192,7 @@ class Dynamics {
   /// out += sign D v, D = alpha M + beta Kd (Rayleigh, Kd from damping_stiffness_at). `out`
   /// must not be work_ (its scratch).
   void add_damping(Parts& p, const Vector& v, Scalar sign, Vector& out) {
-    if (p.settings.rayleigh_mass != 0) {
-      p.system.M.multiply(v, work_, p.threads);
-      out += (sign * p.settings.rayleigh_mass) * work_;
-    }
-    if (p.settings.rayleigh_stiffness != 0) {
-      p.system.Kd.multiply(v, work_, p.threads);
-      out += (sign * p.settings.rayleigh_stiffness) * work_;
-    }
+    add_rayleigh_damping(p.system.M, p.system.Kd, p.settings, v, sign, out, work_, p.threads);
   }
 
   /// The system's Kd = K_proj(u) (file comment). A constant tangent's is K0 of the current rest

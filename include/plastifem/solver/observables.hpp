@@ -57,14 +57,7 @@ Vector reaction_forces(const Body& body, const System& system, const Loads& load
   loads.assemble(s.t, fe);
   system.M.multiply(s.a, r, threads);
   r += f - fe;
-  if (settings.rayleigh_mass != 0) {
-    system.M.multiply(s.v, w, threads);
-    r += settings.rayleigh_mass * w;
-  }
-  if (stiffness_damping) {
-    Kd.multiply(s.v, w, threads);
-    r += settings.rayleigh_stiffness * w;
-  }
+  add_rayleigh_damping(system.M, Kd, settings, s.v, 1.0, r, w, threads);
   for (Index i = 0; i < n; ++i)
     if (!system.constrained(i)) r[i] = 0;
   return r;

@@ -30,6 +30,21 @@ inline void note_unused_nodes(const MeshReport& report) {
                    unused.size() == 1 ? "is" : "are"));
 }
 
+/// out += factor D v with Rayleigh damping D = alpha M + beta Kd (seed 001 eq. 20; s.rayleigh_mass =
+/// alpha, s.rayleigh_stiffness = beta; solver/dynamics.hpp says at which state Kd is taken).
+/// The one damping product of the step, its start and the reactions. `work`: scratch, not `out`.
+inline void add_rayleigh_damping(const BlockSymmetricMatrix& M, const BlockSymmetricMatrix& Kd, const SolverSettings& s,
+                                 const Vector& v, Scalar factor, Vector& out, Vector& work, int threads) {
+  if (s.rayleigh_mass != 0) {
+    M.multiply(v, work, threads);
+    out += (factor * s.rayleigh_mass) * work;
+  }
+  if (s.rayleigh_stiffness != 0) {
+    Kd.multiply(v, work, threads);
+    out += (factor * s.rayleigh_stiffness) * work;
+  }
+}
+
 template <FiniteElement E, class Elastic, bool Enriched = false>
 class System {
  public:
