@@ -309,4 +309,15 @@ TEST_CASE("generalized-alpha and HHT refuse parameters outside their stable seco
   bad = NewmarkSettings::generalized_alpha(0.8);
   bad.beta = 0.2;  // below 1/4 + (alpha_f - alpha_m) / 2: conditionally stable
   CHECK_FALSE(accepts(bad));
+  // The mode and the real-time reach pass through (assigning the settings replaces both); a reach
+  // given here is checked like one set by hand.
+  for (const NewmarkSettings& nm : {NewmarkSettings::generalized_alpha(0.8, NewmarkMode::RealTime, 0.5),
+                                    NewmarkSettings::hht(-0.05, NewmarkMode::RealTime, 0.5)}) {
+    CHECK(nm.mode == NewmarkMode::RealTime);
+    CHECK(nm.realtime_reach == 0.5);
+    CHECK(accepts(nm));
+  }
+  CHECK(std::isinf(NewmarkSettings::generalized_alpha(0.8).realtime_reach));
+  CHECK_FALSE(accepts(NewmarkSettings::generalized_alpha(0.8, NewmarkMode::RealTime, 0.0)));
+  CHECK_FALSE(accepts(NewmarkSettings::hht(-0.05, NewmarkMode::RealTime, -1.0)));
 }

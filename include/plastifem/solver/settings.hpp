@@ -64,19 +64,23 @@ struct NewmarkSettings {
   /// problems like the trapezoidal rule; 0.8 is a common choice; 0 annihilates the highest modes
   /// in one step. alpha_m = (2 rho - 1) / (rho + 1), alpha_f = rho / (rho + 1),
   /// gamma = 1/2 - alpha_m + alpha_f, beta = (1 - alpha_m + alpha_f)^2 / 4 (their eq. 25-26).
-  static NewmarkSettings generalized_alpha(Scalar rho_inf, NewmarkMode mode = NewmarkMode::Accurate) {
+  /// Like hht(), it returns whole settings: assigning them replaces the mode and the reach too,
+  /// so pass those here (`s.newmark = NewmarkSettings::generalized_alpha(0.8, NewmarkMode::RealTime, 0.5)`).
+  static NewmarkSettings generalized_alpha(Scalar rho_inf, NewmarkMode mode = NewmarkMode::Accurate,
+                                           Scalar realtime_reach = std::numeric_limits<Scalar>::infinity()) {
     if (!(rho_inf >= 0 && rho_inf <= 1))
       fail<InvalidArgument>("generalized-alpha needs a spectral radius rho_inf in [0, 1], got {}", rho_inf);
     const Scalar am = (2 * rho_inf - 1) / (rho_inf + 1), af = rho_inf / (rho_inf + 1);
-    return {0.25 * (1 - am + af) * (1 - am + af), 0.5 - am + af, mode, am, af, NewmarkSettings{}.realtime_reach};
+    return {0.25 * (1 - am + af) * (1 - am + af), 0.5 - am + af, mode, am, af, realtime_reach};
   }
   /// Hilber, Hughes and Taylor's alpha method (1977) with their alpha in [-1/3, 0] (Abaqus'
   /// parameter of the same name; its default is -0.05): alpha_m = 0, alpha_f = -alpha,
   /// gamma = 1/2 - alpha, beta = (1 - alpha)^2 / 4.
-  static NewmarkSettings hht(Scalar alpha, NewmarkMode mode = NewmarkMode::Accurate) {
+  static NewmarkSettings hht(Scalar alpha, NewmarkMode mode = NewmarkMode::Accurate,
+                             Scalar realtime_reach = std::numeric_limits<Scalar>::infinity()) {
     if (!(alpha >= -1.0 / 3.0 && alpha <= 0))
       fail<InvalidArgument>("HHT needs alpha in [-1/3, 0], got {}", alpha);
-    return {0.25 * (1 - alpha) * (1 - alpha), 0.5 - alpha, mode, 0, -alpha, NewmarkSettings{}.realtime_reach};
+    return {0.25 * (1 - alpha) * (1 - alpha), 0.5 - alpha, mode, 0, -alpha, realtime_reach};
   }
 };
 
