@@ -207,27 +207,22 @@ class PointLocator {
   /// The element containing X (the lowest-numbered) and X's reference coordinates in it, or
   /// nothing: locate_point(mesh, X, tol).
   std::optional<PointLocation> locate(const Vec3& X) const {
-    if (elements_.empty() || !X.allFinite()) return std::nullopt;
-    const Eigen::Array<Index, 3, 1> c = cell_of(X);
-    const Index cell = c[0] + dims_[0] * (c[1] + dims_[1] * c[2]);
-    for (Index k = start_[static_cast<size_t>(cell)]; k < start_[static_cast<size_t>(cell) + 1]; ++k) {
-      const Index e = elements_[static_cast<size_t>(k)];
-      if (const auto xi = locate_in_element<E>(mesh_->element_nodes(e), X, tol_)) return PointLocation{e, *xi};
-    }
-    return std::nullopt;
+    std::optional<PointLocation> found;
+    visit(X, [&](const PointLocation& where) {
+      found = where;
+      return false;  // the first, the lowest-numbered: stop
+    });
+    return found;
   }
 
   /// Calls f(PointLocation) for every element containing X (within the tolerance: a point on a
   /// shared face or edge is in each of its elements), in increasing element order.
   template <class F>
   void for_each_containing(const Vec3& X, F&& f) const {
-    if (elements_.empty() || !X.allFinite()) return;
-    const Eigen::Array<Index, 3, 1> c = cell_of(X);
-    const Index cell = c[0] + dims_[0] * (c[1] + dims_[1] * c[2]);
-    for (Index k = start_[static_cast<size_t>(cell)]; k < start_[static_cast<size_t>(cell) + 1]; ++k) {
-      const Index e = elements_[static_cast<size_t>(k)];
-      if (const auto xi = locate_in_element<E>(mesh_->element_nodes(e), X, tol_)) f(PointLocation{e, *xi});
-    }
+    visit(X, [&](const PointLocation& where) {
+      f(where);
+      return true;
+    });
   }
 
   /// Cells per direction, and the elements listed per cell on average (a query's cost).
@@ -237,6 +232,20 @@ class PointLocator {
   }
 
  private:
+  /// Calls go(PointLocation) for the elements of X's cell that contain X, in increasing order,
+  /// while it returns true.
+  template <class F>
+  void visit(const Vec3& X, F&& go) const {
+    if (elements_.empty() || !X.allFinite()) return;
+    const Eigen::Array<Index, 3, 1> c = cell_of(X);
+    const Index cell = c[0] + dims_[0] * (c[1] + dims_[1] * c[2]);
+    for (Index k = start_[static_cast<size_t>(cell)]; k < start_[static_cast<size_t>(cell) + 1]; ++k) {
+      const Index e = elements_[static_cast<size_t>(k)];
+      if (const auto xi = locate_in_element<E>(mesh_->element_nodes(e), X, tol_))
+        if (!go(PointLocation{e, *xi})) return;
+    }
+  }
+
   /// The grid cell of p, clamped to the grid (a point outside it lands in a border cell, whose
   /// elements then refuse it).
   Eigen::Array<Index, 3, 1> cell_of(const Vec3& p) const {
