@@ -97,6 +97,11 @@ struct SolverParts {
   const Loads<E>& loads;
   const SolverSettings& settings;
   int threads;
+
+  /// What an acceleration solved now balances (MotionState::balance).
+  Balance balance() const {
+    return {loads.version(), constraints.version(), settings.mass, settings.rayleigh_mass, settings.rayleigh_stiffness};
+  }
 };
 
 template <FiniteElement E, class Elastic, bool Enriched = false>
@@ -189,10 +194,10 @@ class Dynamics {
     }
   }
 
-  /// out += sign D v, D = alpha M + beta Kd (Rayleigh, Kd from damping_stiffness_at). `out`
+  /// out += factor D v, D = alpha M + beta Kd (Rayleigh, Kd from damping_stiffness_at). `out`
   /// must not be work_ (its scratch).
-  void add_damping(Parts& p, const Vector& v, Scalar sign, Vector& out) {
-    add_rayleigh_damping(p.system.M, p.system.Kd, p.settings, v, sign, out, work_, p.threads);
+  void add_damping(Parts& p, const Vector& v, Scalar factor, Vector& out) {
+    add_rayleigh_damping(p.system.M, p.system.Kd, p.settings, v, factor, out, work_, p.threads);
   }
 
   /// The system's Kd = K_proj(u) (file comment). A constant tangent's is K0 of the current rest
@@ -231,7 +236,7 @@ class Dynamics {
   /// (the prescribed dofs at their new values), or at u_n for a step that starts from there (the
   /// accurate retry at huge steps) or whose predictor inverts an element.
   void start_step(Parts& p, const StateT& n, Scalar dt, bool predictor = true) {
-    if (n.acceleration_known) a_start_ = n.a;
+    if (n.balance == p.balance()) a_start_ = n.a;
     else initial_acceleration(p, n, a_start_);
     const Scalar t1 = n.t + dt;
     p.loads.assemble(t1, f_ext_);
@@ -436,7 +441,7 @@ class Dynamics {
     kinematics(p, n, nm, u_);
     if (!u_.allFinite() || !v_.allFinite() || !a_.allFinite())
       fail<SolverError>("Newmark step at t = {} produced non-finite values; the state is unchanged", t1);
-    store(n, trial, dt, serial);
+    store(p, n, trial, dt, serial);
     StepReport rep;
     record(rep, res);
     rep.path_jumps = path_jumps_;
@@ -453,7 +458,8 @@ class Dynamics {
   };
 
   /// Moves u_, v_, a_ and the step's data into the trial state.
-  void store(const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial, bool keep_previous_start = false) {
+  void store(const Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial,
+             bool keep_previous_start = false) {
     trial.u.swap(u_);
     trial.v.swap(v_);
     trial.a.swap(a_);
@@ -468,7 +474,7 @@ class Dynamics {
     trial.warm_start.swap(first_increment_);
     trial.warm_dt = dt;
     trial.t = n.t + dt;
-    trial.acceleration_known = true;
+    trial.balance = p.balance();
     trial.serial = serial;
   }
 
@@ -558,7 +564,7 @@ class Dynamics {
     const Scalar rnorm = dynamic_residual(p, n, nm, u_, f_int_, f_ext_norm, scale);
     if (!v_.allFinite() || !a_.allFinite())
       fail<SolverError>("real-time step at t = {} produced non-finite values; the state is unchanged", t1);
-    store(n, trial, dt, serial, true);
+    store(p, n, trial, dt, serial, true);
     f_lin_.swap(f_int_);
     linearisation_serial_ = serial;  // valid for the trial state, if it is committed
     StepReport rep;

@@ -215,7 +215,8 @@ class Solver {
   /// Everything derived from the dof map, rebuilt after it changed.
   void rebuild();
   /// A change of the constraint sets (`change()` makes it and returns the set's handle), then
-  /// what depends on them: the held dofs, the plastic anchors, the balance of the state.
+  /// what depends on them: the held dofs and the plastic anchors (the state's acceleration
+  /// follows their version: MotionState::balance).
   template <class Change>
   ConstraintHandle constrain(const char* what, Change&& change);
   LoadHandle add_load(typename LoadsType::Definition def, LoadCurve curve, std::string what);

@@ -33,7 +33,6 @@ ConstraintHandle Solver<E, Elastic, Plastic, Enrich>::constrain(const char* what
   const ConstraintHandle h = change();
   system_.set_constrained(body_, constraints_.constrained_dofs(), held_enriched_dofs());
   plastic_.constraints_changed(mesh().num_nodes(), [this](Index d) { return system_.constrained(d); });
-  current_.acceleration_known = false;
   return h;
 }
 
@@ -73,7 +72,6 @@ LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename LoadsType::Def
   check_not_solving("adding a load");
   const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
   loads_.build_last(mesh(), enriched_body_force());
-  current_.acceleration_known = false;
   return h;
 }
 
@@ -112,7 +110,6 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 void Solver<E, Elastic, Plastic, Enrich>::remove_load(LoadHandle h) {
   check_not_solving("remove_load");
   loads_.remove(h);
-  current_.acceleration_known = false;
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -120,7 +117,6 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 void Solver<E, Elastic, Plastic, Enrich>::clear_loads() {
   check_not_solving("clear_loads");
   loads_.clear();
-  current_.acceleration_known = false;
 }
 
 // --- cutting, state, plasticity -------------------------------------------------------------
@@ -163,7 +159,7 @@ void Solver<E, Elastic, Plastic, Enrich>::set_acceleration(const Vector& a) {
   check_not_solving("set_acceleration");
   if (a.size() != num_dofs() || !a.allFinite()) fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
   current_.a = a;
-  current_.acceleration_known = true;
+  current_.balance = parts().balance();
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -244,14 +240,10 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) {
   check_not_solving("set_settings");
   validate_settings(s);
-  // A new mass or damping changes the balance the committed acceleration satisfied.
-  const bool balance_changed = s.mass != settings_.mass || s.rayleigh_mass != settings_.rayleigh_mass ||
-                               s.rayleigh_stiffness != settings_.rayleigh_stiffness;
-  settings_ = s;
+  settings_ = s;  // a new mass or damping: the committed acceleration's balance is not the current one
   system_.set_settings(body_, settings_);
   system_.set_threads(threads());
   loads_.build(mesh(), material().density, settings_.mass, num_dofs(), enriched_body_force());
-  if (balance_changed) current_.acceleration_known = false;
   dynamics_.invalidate();
 }
 

@@ -8,6 +8,10 @@
 //              grow with zeros when the dof map grows: exact for enriched dofs, whose added
 //              functions are zero at the instant of the cut);
 //   t          time;
+//   balance    what a balances: the versions of the loads and constraints and the inertia
+//              settings it was solved with. A step uses a as a_n only while they are the
+//              solver's current ones, else solves it from equilibrium: a change of the loads,
+//              the constraints, the mass or the damping needs no one to remember to forget a;
 //   load       the external force the state is balanced with (statics continue from it);
 //   warm_start the first Newton increment of the last step and its dt (the next step's CG
 //              start), and in real-time mode the one before (linear extrapolation of the two,
@@ -16,12 +20,23 @@
 //   serial     an identity: a derived quantity computed from this state (the real-time step's
 //              linearisation) is valid while the committed state carries the same serial.
 #include <plastifem/assembly/block_matrix.hpp>
+#include <plastifem/assembly/mass.hpp>
 #include <plastifem/plastic/none.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <utility>
 
 namespace plastifem {
+
+/// What an acceleration balances, M a + D v + f_int(u) = f_ext(t): the loads and constraint sets
+/// (their versions) and the inertia settings (mass kind, Rayleigh coefficients) it was solved with.
+struct Balance {
+  std::uint64_t loads = 0, constraints = 0;
+  MassKind mass = MassKind::Consistent;
+  Scalar rayleigh_mass = 0, rayleigh_stiffness = 0;
+  bool operator==(const Balance&) const = default;
+};
 
 /// The motion part of a State: everything a Newmark step or a static solve changes. Dynamics
 /// and Statics work on it alone, so that they are compiled once per (element, model) whatever
@@ -29,7 +44,7 @@ namespace plastifem {
 struct MotionState {
   Vector u, v, a;
   Scalar t = 0;
-  bool acceleration_known = false;  ///< a is the acceleration at t (else: solved from equilibrium)
+  std::optional<Balance> balance;  ///< what a balances (none, or not the solver's now: solved from equilibrium)
   Vector load;
   Vector warm_start, warm_start_previous;
   Scalar warm_dt = 0, warm_dt_previous = 0;
@@ -43,7 +58,7 @@ struct MotionState {
     warm_start.resize(0), warm_start_previous.resize(0);
     warm_dt = warm_dt_previous = 0;
     t = 0;
-    acceleration_known = false;
+    balance.reset();
   }
   /// Grows to n dofs with zeros in the new entries (the dof map grew).
   void grow(Index n) {
@@ -59,7 +74,7 @@ struct MotionState {
   }
   /// Assignment that reuses this state's storage (no allocation when the sizes match).
   void assign_motion(const MotionState& o) {
-    u = o.u, v = o.v, a = o.a, t = o.t, acceleration_known = o.acceleration_known;
+    u = o.u, v = o.v, a = o.a, t = o.t, balance = o.balance;
     load = o.load, warm_start = o.warm_start, warm_start_previous = o.warm_start_previous;
     warm_dt = o.warm_dt, warm_dt_previous = o.warm_dt_previous, serial = o.serial;
   }
@@ -67,14 +82,14 @@ struct MotionState {
     u.swap(o.u), v.swap(o.v), a.swap(o.a), load.swap(o.load), warm_start.swap(o.warm_start);
     warm_start_previous.swap(o.warm_start_previous);
     std::swap(warm_dt, o.warm_dt), std::swap(warm_dt_previous, o.warm_dt_previous);
-    std::swap(t, o.t), std::swap(acceleration_known, o.acceleration_known), std::swap(serial, o.serial);
+    std::swap(t, o.t), std::swap(balance, o.balance), std::swap(serial, o.serial);
   }
   /// Every field equal, bit for bit (NaN payloads aside).
   bool same_motion(const MotionState& y) const {
     auto same = [](const Vector& p, const Vector& q) {
       return p.size() == q.size() && std::equal(p.data(), p.data() + p.size(), q.data());
     };
-    return same(u, y.u) && same(v, y.v) && same(a, y.a) && t == y.t && acceleration_known == y.acceleration_known &&
+    return same(u, y.u) && same(v, y.v) && same(a, y.a) && t == y.t && balance == y.balance &&
            same(load, y.load) && same(warm_start, y.warm_start) && same(warm_start_previous, y.warm_start_previous) &&
            warm_dt == y.warm_dt && warm_dt_previous == y.warm_dt_previous && serial == y.serial;
   }

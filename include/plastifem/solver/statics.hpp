@@ -72,7 +72,7 @@ class Statics {
     }
     state.v.setZero();
     state.a.setZero();
-    state.acceleration_known = true;
+    state.balance = p.balance();
     state.load = f_target_;
     state.warm_start.resize(0);
     rep.load_steps = increments;
