@@ -11,6 +11,9 @@ namespace plastifem {
 
 enum class NewmarkMode { Accurate, RealTime };
 
+/// NewmarkSettings::realtime_reach that never redoes a real-time step (the default).
+inline constexpr Scalar unlimited_reach = std::numeric_limits<Scalar>::infinity();
+
 struct NewtonSettings {
   /// Converged when |r| <= tol * (force scale) over free dofs; the scale is the largest of the
   /// terms of the balance: |f_ext|, |f_int|, and in dynamics |M a| and |D v| (a body in rigid
@@ -52,10 +55,10 @@ struct NewmarkSettings {
   /// one linearised solve may make; a real-time step that moves further is redone as an
   /// accurate (Newton) step, counted in StepReport::realtime_redone. The linearisation moves
   /// nodes along chords: an edge turned by theta in one step is stretched by about theta^2 / 2
-  /// (12% at 0.5). Off (infinity) by default, for a fixed cost per step. Set it (0.5) for a
+  /// (12% at 0.5). Off (unlimited_reach) by default, for a fixed cost per step. Set it (0.5) for a
   /// model undefined for inverted elements (NeoHookean, MooneyRivlin) that is let go suddenly:
   /// solver/dynamics.hpp says why, with the figures.
-  Scalar realtime_reach = std::numeric_limits<Scalar>::infinity();
+  Scalar realtime_reach = unlimited_reach;
 
   /// Chung and Hulbert's generalized-alpha (1993) with high-frequency spectral radius
   /// rho_inf in [0, 1]: second order, unconditionally stable, and the most dissipation of
@@ -67,7 +70,7 @@ struct NewmarkSettings {
   /// Like hht(), it returns whole settings: assigning them replaces the mode and the reach too,
   /// so pass those here (`s.newmark = NewmarkSettings::generalized_alpha(0.8, NewmarkMode::RealTime, 0.5)`).
   static NewmarkSettings generalized_alpha(Scalar rho_inf, NewmarkMode mode = NewmarkMode::Accurate,
-                                           Scalar realtime_reach = std::numeric_limits<Scalar>::infinity()) {
+                                           Scalar realtime_reach = unlimited_reach) {
     if (!(rho_inf >= 0 && rho_inf <= 1))
       fail<InvalidArgument>("generalized-alpha needs a spectral radius rho_inf in [0, 1], got {}", rho_inf);
     const Scalar am = (2 * rho_inf - 1) / (rho_inf + 1), af = rho_inf / (rho_inf + 1);
@@ -77,7 +80,7 @@ struct NewmarkSettings {
   /// parameter of the same name; its default is -0.05): alpha_m = 0, alpha_f = -alpha,
   /// gamma = 1/2 - alpha, beta = (1 - alpha)^2 / 4.
   static NewmarkSettings hht(Scalar alpha, NewmarkMode mode = NewmarkMode::Accurate,
-                             Scalar realtime_reach = std::numeric_limits<Scalar>::infinity()) {
+                             Scalar realtime_reach = unlimited_reach) {
     if (!(alpha >= -1.0 / 3.0 && alpha <= 0))
       fail<InvalidArgument>("HHT needs alpha in [-1/3, 0], got {}", alpha);
     return {0.25 * (1 - alpha) * (1 - alpha), 0.5 - alpha, mode, 0, -alpha, realtime_reach};
