@@ -15,6 +15,13 @@ inline std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
+/// "1,2" -> {1, 2} (thread counts)
+inline std::vector<int> split_ints(const std::string& s) {
+  std::vector<int> out;
+  for (const auto& item : split(s)) out.push_back(std::stoi(item));
+  return out;
+}
+
 /// The median of the samples (the upper one of an even count), as every table here reports.
 inline double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());

@@ -217,10 +217,8 @@ int main(int argc, char** argv) try {
     else if (i + 1 < argc && a == "--plastic-scenes") plastic_scenes = split(argv[++i]);
     else if (i + 1 < argc && a == "--steps") steps = std::max(10, std::stoi(argv[++i]));
     else if (i + 1 < argc && a == "--csv") csv = argv[++i];
-    else if (i + 1 < argc && a == "--threads") {
-      threads.clear();
-      for (const auto& t : split(argv[++i])) threads.push_back(std::stoi(t));
-    } else fail<InvalidArgument>("unknown option '{}'", a);
+    else if (i + 1 < argc && a == "--threads") threads = plastifem::bench::split_ints(argv[++i]);
+    else fail<InvalidArgument>("unknown option '{}'", a);
   }
   std::ofstream out(csv);
   out << "scene,element,model,threads,solver_ms,bare_ms,ratio_median,ratio_q1,ratio_q3,max_u_difference\n";

@@ -145,10 +145,8 @@ int main(int argc, char** argv) try {
     }
     else if (i + 1 < argc && a == "--elements") elements = split(argv[++i]);
     else if (i + 1 < argc && a == "--models") models = split(argv[++i]);
-    else if (i + 1 < argc && a == "--threads") {
-      threads.clear();
-      for (const auto& t : split(argv[++i])) threads.push_back(std::stoi(t));
-    } else fail<InvalidArgument>("unknown option '{}'", a);
+    else if (i + 1 < argc && a == "--threads") threads = plastifem::bench::split_ints(argv[++i]);
+    else fail<InvalidArgument>("unknown option '{}'", a);
   }
   std::ofstream out(csv);
   out << "scene,element,model,solver,mode,threads,dofs,elements,peak_heap_mb,median_ms,min_ms,max_ms,newton_per_step,"
