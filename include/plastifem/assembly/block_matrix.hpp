@@ -6,8 +6,9 @@
 // J <= I, the diagonal block whole), by block rows, each block row-major:
 //   value of entry (3 I + i, 3 J + j) = values[9 k + 3 i + j],  k = the block's index.
 // Against Eigen's general CSC with both triangles (12 bytes per scalar nonzero) this streams
-// 72 + 4 bytes per stored block instead of 2 x 9 x 12: 2.8x fewer bytes, and a step is
-// memory-bound from a few thousand elements up (DESIGN.md, "What the hardware says").
+// 72 + 4 bytes per stored block instead of 2 x 9 x 12: 2.8x fewer bytes. The product then
+// runs at about 10 cycles per block, bound by its loads and stores rather than by memory
+// (docs/performance.md, "Where a step's time goes").
 //
 // y = A x visits each stored block once: y_I += B x_J and, off the diagonal, y_J += B^T x_I.
 // With threads, block rows are split into ranges of equal block counts; contributions a thread

@@ -24,7 +24,8 @@
 //    steps take at a fixed cost.
 //
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
-// acceleration, when not known, comes from equilibrium at t_n:
+// acceleration, unless the state's balances the current loads, constraints and inertia settings
+// (MotionState::balance), comes from equilibrium at t_n:
 //   M a_n = f_ext(t_n) - f_int(u_n) - D v_n  at the free dofs, a_n = the path's at constrained ones.
 //
 // Rayleigh damping D = alpha M + beta Kd (seed 001 eq. 20, D = alpha M + beta K, with the

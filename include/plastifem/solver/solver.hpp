@@ -149,7 +149,8 @@ class Solver {
   /// Sets u, v and t; the acceleration is then solved from equilibrium at the next step, and
   /// the state counts as balanced with the load f_int(u) for statics.
   void set_state(const Vector& u, const Vector& v, Scalar time = 0);
-  /// Uses `a` as the acceleration at the current time instead of solving for equilibrium.
+  /// Uses `a` as the acceleration at the current time instead of solving for equilibrium, until
+  /// the loads, constraints, mass kind or damping change (MotionState::balance).
   void set_acceleration(const Vector& a);
 
   // --- plasticity (seed 000; plastic/) -----------------------------------------------------
