@@ -15,6 +15,12 @@
 //             element matrix (one shared here: it stays in cache);
 //   form      A = cm M + K (System::form's pass): reads two matrices, writes one.
 //
+// The zeroing and the form run on all threads, each writing the blocks its product reads
+// (BlockSymmetricMatrix::for_value_ranges). Two more rows per scene time them as a step chains
+// them, zero + scatter and form + 7 products (a real-time step's CG), and again with the first
+// pass on one thread (as they were): the difference is the cost of values written by one core
+// and read by another.
+//
 // For each: median ms over 30 runs, the bytes it must move, the GB/s that makes, and that as a
 // share of the triad bandwidth on as many threads. A share near 1 is memory-bound: only fewer
 // bytes make it faster; a share well below 1 with the matrix far larger than the caches means
@@ -37,23 +43,10 @@
 #endif
 
 using namespace plastifem;
-using plastifem::bench::median;
+using plastifem::bench::median_ms;
 using plastifem::bench::split;
 
 namespace {
-
-/// Median wall time of `run` in ms over `repeats` runs, after one warm-up run.
-template <class F>
-double median_ms(F&& run, int repeats = 30) {
-  run();
-  std::vector<double> ms;
-  for (int k = 0; k < repeats; ++k) {
-    const auto t0 = std::chrono::steady_clock::now();
-    run();
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  }
-  return median(ms);
-}
 
 struct Row {
   std::string pass, scene, element;
@@ -106,29 +99,43 @@ std::vector<Row> matrix_rows(const std::string& scene, int threads) {
   constexpr Index element_blocks = E::num_nodes * (E::num_nodes + 1) / 2;
   const double block_mb = 72e-6 * static_cast<double>(nb);
   std::vector<Row> rows;
-  auto row = [&](const char* pass, double mb, double ms) {
+  auto row = [&](const std::string& pass, double mb, double ms) {
     rows.push_back({pass, scene, E::name, threads, nb, nodes, ne, mb, ms});
   };
 
-  const double zero = median_ms([&] { K.set_zero(); });
+  const double zero = median_ms([&] { K.set_zero(threads); });
   row("zero", block_mb, zero);
-  const double scatter = median_ms([&] {
+  auto scatter_pass = [&] {
     assembler.for_each_element([&](Index e) { assembler.add_element_matrix(e, Ke, K.values()); }, threads);
-  });
-  row("scatter", 144e-6 * static_cast<double>(element_blocks * ne), scatter);
-  const Index nv = A.num_values();
-  const double form = median_ms([&] {
-    Scalar* a = A.values();
-    const Scalar *m = M.values(), *k = K.values();
-#ifdef _OPENMP
-#pragma omp parallel for schedule(static) num_threads(threads) if (threads > 1)
-#endif
-    for (Index i = 0; i < nv; ++i) a[i] = cm * m[i] + k[i];
-  });
-  row("form", 3 * block_mb, form);
+  };
+  const double scatter = median_ms(scatter_pass);
+  const double scatter_mb = 144e-6 * static_cast<double>(element_blocks * ne);
+  row("scatter", scatter_mb, scatter);
+  const Scalar *m = M.values(), *k = K.values();
+  Scalar* a = A.values();
+  auto form_pass = [&](int form_threads) {  // System::form's pass
+    A.for_value_ranges(form_threads, [&](Index v0, Index v1) {
+      for (Index i = v0; i < v1; ++i) a[i] = cm * m[i] + k[i];
+    });
+  };
+  row("form", 3 * block_mb, median_ms([&] { form_pass(threads); }));
   Vector x = Vector::Random(A.rows()), y(A.rows());
-  const double product = median_ms([&] { A.multiply(x, y, threads); });
-  row("product", 76e-6 * static_cast<double>(nb) + 72e-6 * static_cast<double>(nodes), product);
+  const double product_mb = 76e-6 * static_cast<double>(nb) + 72e-6 * static_cast<double>(nodes);
+  row("product", product_mb, median_ms([&] { A.multiply(x, y, threads); }));
+  // As a step runs them: the zeroing then the scatter, the form then a real-time step's CG
+  // (7 products); with the first pass on all threads (the library's) and on one thread, which
+  // leaves the values in one core's cache for the other thread to fetch.
+  for (int first : {threads, 1}) {
+    if (first == 1 && threads == 1) break;
+    const std::string on = first == 1 ? " (1st on 1 thread)" : "";
+    rows.push_back({"zero+scatter" + on, scene, E::name, threads, nb, nodes, ne, block_mb + scatter_mb,
+                    median_ms([&] { K.set_zero(first), scatter_pass(); })});
+    rows.push_back({"form+7 products" + on, scene, E::name, threads, nb, nodes, ne, 3 * block_mb + 7 * product_mb,
+                    median_ms([&] {
+                      form_pass(first);
+                      for (int j = 0; j < 7; ++j) A.multiply(x, y, threads);
+                    })});
+  }
   return rows;
 }
 
@@ -149,7 +156,7 @@ int main(int argc, char** argv) try {
   std::ofstream out(csv);
   out << "pass,scene,element,threads,blocks,nodes,elements,mb_moved,median_ms,gb_per_s,share_of_triad,ns_per_block,"
          "bytes_per_element\n";
-  fmt::print("{:13} {:9} {:5} {:>3} {:>8} {:>9} {:>9} {:>7} {:>6} {:>8} {:>8}\n", "pass", "scene", "elem", "thr", "blocks",
+  fmt::print("{:33} {:9} {:5} {:>3} {:>8} {:>9} {:>9} {:>7} {:>6} {:>8} {:>8}\n", "pass", "scene", "elem", "thr", "blocks",
              "MB moved", "median ms", "GB/s", "share", "ns/block", "B/elem");
   for (int t : threads) {
     const std::vector<Row> stream = stream_rows(t);
@@ -167,7 +174,7 @@ int main(int argc, char** argv) try {
       const double gbs = r.mb / r.ms;
       const double ns_block = r.blocks ? 1e6 * r.ms / static_cast<double>(r.blocks) : 0;
       const double per_element = r.elements ? 1e6 * r.mb / static_cast<double>(r.elements) : 0;
-      fmt::print("{:13} {:9} {:5} {:>3} {:>8} {:>9.1f} {:>9.3f} {:>7.1f} {:>6.2f} {:>8.2f} {:>8.0f}\n", r.pass, r.scene,
+      fmt::print("{:33} {:9} {:5} {:>3} {:>8} {:>9.1f} {:>9.3f} {:>7.1f} {:>6.2f} {:>8.2f} {:>8.0f}\n", r.pass, r.scene,
                  r.element, r.threads, r.blocks, r.mb, r.ms, gbs, gbs / triad, ns_block, per_element);
       out << fmt::format("{},{},{},{},{},{},{},{:.3f},{:.6f},{:.2f},{:.3f},{:.3f},{:.0f}\n", r.pass, r.scene, r.element,
                          r.threads, r.blocks, r.nodes, r.elements, r.mb, r.ms, gbs, gbs / triad, ns_block, per_element);

@@ -244,3 +244,32 @@ TEST_CASE("threaded block product equals the serial one to round-off on a large 
   CHECK((y1 - ref).norm() <= 1e-13 * ref.norm());
   CHECK((y2 - ref).norm() <= 1e-13 * ref.norm());
 }
+
+TEST_CASE("value passes with threads cover every value once and equal the serial passes", "[assembly][threads]") {
+  // Above the threading threshold (3000 blocks): bar720-size Hex8. The ranges must be disjoint
+  // and cover the array (a gap leaves stale values in A, an overlap would race), whatever the
+  // thread count, including more threads than cores and OpenMP's default (0).
+  const auto mesh = bar_mesh<Hex8>(20, 6, 6);
+  const Assembler<Hex8> assembler(mesh);
+  BlockSymmetricMatrix A = assembler.zero_matrix(), B = assembler.zero_matrix();
+  REQUIRE(A.pattern().num_blocks() > 3000);
+  for (int threads : {0, 1, 2, 3, 5}) {
+    CAPTURE(threads);
+    std::vector<int> visits(static_cast<size_t>(A.num_values()), 0);
+    A.for_value_ranges(threads, [&](Index v0, Index v1) {
+      for (Index i = v0; i < v1; ++i) ++visits[static_cast<size_t>(i)];  // disjoint ranges: no race
+    });
+    CHECK(std::all_of(visits.begin(), visits.end(), [](int v) { return v == 1; }));
+  }
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<Scalar> u(-1, 1);
+  for (Index i = 0; i < A.num_values(); ++i) B.values()[i] = u(rng);
+  A.copy_values(B, 2);
+  CHECK(std::equal(A.values(), A.values() + A.num_values(), B.values()));
+  A.set_zero(2);
+  CHECK(std::all_of(A.values(), A.values() + A.num_values(), [](Scalar v) { return v == 0; }));
+  // Another pattern's values would be read out of order: refused.
+  const Assembler<Hex8> other(bar_mesh<Hex8>(20, 6, 5));
+  BlockSymmetricMatrix C = other.zero_matrix();
+  CHECK_THROWS_AS(A.copy_values(C, 2), Error);
+}

@@ -122,7 +122,7 @@ class Discretization {
   bool assemble(const Vector& u, Vector& f, BlockSymmetricMatrix* K, TangentKind kind, int threads) const {
     f.setZero();
     Scalar* values = K ? K->values() : nullptr;
-    if (K) K->set_zero();
+    if (K) K->set_zero(threads);
     [[maybe_unused]] const bool cuts = has_cuts();
     const bool weighted = mesh_.weighted();
     assembler_.for_each_element(

@@ -156,7 +156,7 @@ class Dynamics {
       p.system.M.multiply(path_.a, work_, p.threads);
       rhs_ -= work_;
     }
-    p.system.form_mass();
+    p.system.form_mass(p.threads);
     p.system.zero_held(rhs_);
     // The mass matrix is well conditioned (Jacobi-scaled condition number ~10-50 for the
     // consistent mass, 1 for the lumped one), so CG reaches round-off in a few dozen products,
@@ -315,7 +315,7 @@ class Dynamics {
   static bool form_system(Parts& p, Scalar cm, Scalar cd, bool current) {
     bool same = current;
     if constexpr (constant_tangent) same = p.system.same_coefficients(cm, cd);
-    if (!same) p.system.form(cm, cd);
+    if (!same) p.system.form(cm, cd, p.threads);
     return same;
   }
 

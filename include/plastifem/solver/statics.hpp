@@ -120,7 +120,7 @@ class Statics {
       p.system.zero_held(s.rhs_);
       auto attempt = [&] {
         du.setZero();
-        p.system.form_stiffness();
+        p.system.form_stiffness(p.threads);
         return p.system.static_linear().solve(p.system.A, s.rhs_, du);
       };
       try {

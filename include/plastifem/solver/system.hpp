@@ -135,30 +135,31 @@ class System {
   }
   void zero_held(Vector& v) const { blocks_.zero(v); }
 
-  /// A = cm M + K + cd Kd (same pattern: one pass over the values), then the held rows and
-  /// columns become identity.
-  void form(Scalar cm, Scalar cd) {
-    const Index nnz = A.num_values();
+  /// A = cm M + K + cd Kd (same pattern: one pass over the values, split between `threads` as
+  /// the CG's products split A: assembly/block_matrix.hpp's for_value_ranges says why), then
+  /// the held rows and columns become identity.
+  void form(Scalar cm, Scalar cd, int threads) {
     Scalar* a = A.values();
     const Scalar* m = M.values();
     const Scalar* k = K.values();
-    if (cd != 0) {
-      const Scalar* kd = Kd.values();
-      for (Index i = 0; i < nnz; ++i) a[i] = cm * m[i] + k[i] + cd * kd[i];
-    } else {
-      for (Index i = 0; i < nnz; ++i) a[i] = cm * m[i] + k[i];
-    }
+    const Scalar* kd = cd != 0 ? Kd.values() : nullptr;
+    A.for_value_ranges(threads, [&](Index v0, Index v1) {
+      if (kd)
+        for (Index i = v0; i < v1; ++i) a[i] = cm * m[i] + k[i] + cd * kd[i];
+      else
+        for (Index i = v0; i < v1; ++i) a[i] = cm * m[i] + k[i];
+    });
     blocks_.apply(A);
   }
   /// A = M with held rows as identity (the initial acceleration solve).
-  void form_mass() {
-    A = M;
+  void form_mass(int threads) {
+    A.copy_values(M, threads);
     blocks_.apply(A);
     coefficients_ = {0, 0, 0};
   }
   /// A = K with held rows as identity (statics).
-  void form_stiffness() {
-    A = K;
+  void form_stiffness(int threads) {
+    A.copy_values(K, threads);
     blocks_.apply(A);
     coefficients_ = {0, 0, 0};
   }
