@@ -273,3 +273,53 @@ TEST_CASE("value passes with threads cover every value once and equal the serial
   BlockSymmetricMatrix C = other.zero_matrix();
   CHECK_THROWS_AS(A.copy_values(C, 2), Error);
 }
+
+TEST_CASE("a mesh numbered without spatial coherence assembles in spatial order, equal to its coherent copy",
+          "[assembly][threads]") {
+  // Gmsh's HXT mesher numbers tetrahedra with no spatial coherence. In index order, chunks of 16
+  // such elements touch rows all over the mesh, every chunk conflicts with nearly every other,
+  // and a 2,559-tet liver needed more than the 64 colours the assembler has (MeshError). It then
+  // assembles in the Z-order of the element centres. The bar's Tet4s in a random order (2,160
+  // elements, 135 chunks) fail the index order the same way.
+  const Mesh<Tet4> bar = bar_mesh<Tet4>(10, 6, 6);
+  std::vector<Mesh<Tet4>::Connectivity> elements;
+  for (Index e = 0; e < bar.num_elements(); ++e) elements.push_back(bar.element(e));
+  std::mt19937 rng(3);
+  std::shuffle(elements.begin(), elements.end(), rng);
+  const Mesh<Tet4> shuffled(bar.nodes(), elements);
+  const Assembler<Tet4> assembler(shuffled);
+  CHECK(assembler.num_colours() <= 32);  // chunks along the curve conflict with their neighbours only (measured 19)
+  std::vector<int> visits(static_cast<size_t>(shuffled.num_elements()), 0);
+  assembler.for_each_element([&](Index e) { ++visits[static_cast<size_t>(e)]; }, 2);  // a colour's chunks share no row: no race
+  CHECK(std::all_of(visits.begin(), visits.end(), [](int v) { return v == 1; }));
+  // The same nodes and elements give the same steps, force and tangent as the coherent bar (to
+  // the round-off of another summation order); on 2 threads the same force and tangent bits as
+  // on 1 at a common state (the threaded product reorders a few additions: the steps differ by
+  // round-off, as in test_solver's thread test).
+  std::vector<Index> clamped;
+  for (Index i = 0; i < bar.num_nodes(); ++i)
+    if (bar.node(i).x() == 0) clamped.push_back(i);
+  std::vector<Vector> u, f;
+  std::vector<SparseMatrix> K;
+  for (const Mesh<Tet4>* mesh : {&bar, &shuffled, &shuffled}) {
+    SolverSettings st;
+    st.threads = u.size() == 2 ? 2 : 1;
+    Solver<Tet4, Corotational> s(*mesh, Material{3000, 0.45, 1.0}, st);
+    s.fix(clamped);
+    s.add_gravity(Vec3(0, 0, -9.81));
+    for (int k = 0; k < 3; ++k) s.step(0.01);
+    u.push_back(s.displacement());
+    s.set_state(Vector::Constant(s.num_dofs(), 0.01), Vector::Zero(s.num_dofs()));
+    f.push_back(s.internal_force());
+    K.push_back(s.tangent());
+  }
+  REQUIRE(u[0].norm() > 0);
+  // Newton to 1e-8 and CG to 1e-6 relative: the order of summation moves u by far less.
+  CHECK((u[1] - u[0]).norm() <= 1e-6 * u[0].norm());
+  CHECK((f[1] - f[0]).norm() <= 1e-12 * f[0].norm() + 1e-12 * (f[1] - f[0]).size());
+  CHECK((Eigen::MatrixXd(K[1]) - Eigen::MatrixXd(K[0])).norm() <= 1e-12 * Eigen::MatrixXd(K[0]).norm());
+  CHECK((u[2] - u[1]).norm() <= 1e-12 * u[1].norm());
+  CHECK((f[2].array() == f[1].array()).all());
+  REQUIRE(K[1].nonZeros() == K[2].nonZeros());
+  CHECK(std::equal(K[1].valuePtr(), K[1].valuePtr() + K[1].nonZeros(), K[2].valuePtr()));
+}

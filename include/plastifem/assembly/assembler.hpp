@@ -11,7 +11,8 @@
 // elements one of their span's size.
 //
 // Order and threads: elements are cut into chunks of consecutive indices (about 1/256 of the
-// mesh each, at least 16 elements), and the chunks are greedily coloured so that no two chunks
+// mesh each, at least 16 elements; in a spatial order instead if the mesh's numbering has no
+// coherence: build_colours), and the chunks are greedily coloured so that no two chunks
 // of one colour share a row. Colours run one after the other, the chunks of a colour in
 // parallel, the elements of a chunk in index order. Each matrix entry then receives its
 // contributions in the same order whatever the thread count, so results are bit-identical
@@ -86,8 +87,12 @@ class Assembler {
 #else
       (void)threads;
 #endif
-      for (Index i = 0; i < n; ++i)
-        for (Index e = colour[i].first; e < colour[i].second; ++e) body(e);
+      for (Index i = 0; i < n; ++i) {
+        if (order_.empty())
+          for (Index e = colour[i].first; e < colour[i].second; ++e) body(e);
+        else
+          for (Index k = colour[i].first; k < colour[i].second; ++k) body(order_[k]);
+      }
     }
   }
 
@@ -241,23 +246,71 @@ class Assembler {
     }
   }
 
+  /// Chunks and colours in the elements' index order; if a mesh numbered without spatial
+  /// coherence (Gmsh's HXT mesher numbers its tetrahedra so: a 2,559-tet liver needed more than
+  /// 64 colours) makes that fail, in the order of their centres along a Z-order curve, in which
+  /// consecutive elements are neighbours whatever the numbering. The index order stays the first
+  /// choice: it is the order every mesh was assembled in before, so their results stay bit for bit.
   void build_colours(const Mesh<E>& mesh, const DofMap& dofs) {
     const Index ne = mesh.num_elements();
     chunk_size_ = std::max<Index>(16, ne / 256);
+    order_.clear();
+    if (colour_chunks(mesh, dofs)) return;
+    order_ = spatial_order(mesh);
+    if (!colour_chunks(mesh, dofs))
+      fail<MeshError>("assembly: more than 64 chunk colours needed even in spatial order (a node shared by too many "
+                      "elements)");
+  }
+
+  /// Greedy colouring of the chunks of `chunk_size_` consecutive elements (in order_ if set):
+  /// false if a chunk finds all 64 colours taken.
+  bool colour_chunks(const Mesh<E>& mesh, const DofMap& dofs) {
+    const Index ne = mesh.num_elements();
+    colours_.clear();
     std::vector<std::uint64_t> row_colours(num_rows_, 0);  // bit k: a colour-k chunk uses this row
+    auto element = [&](Index k) { return order_.empty() ? k : order_[k]; };
     for (Index begin = 0; begin < ne; begin += chunk_size_) {
       const Index end = std::min(ne, begin + chunk_size_);
       std::uint64_t used = 0;
-      for (Index e = begin; e < end; ++e) for_each_row(mesh, dofs, e, [&](Index r) { used |= row_colours[r]; });
-      if (~used == 0)
-        fail<MeshError>("elements {}..{}: more than 64 chunk colours needed (a node shared by too many elements)",
-                        begin, end - 1);
-      const int k = std::countr_one(used);
-      for (Index e = begin; e < end; ++e)
-        for_each_row(mesh, dofs, e, [&](Index r) { row_colours[r] |= std::uint64_t{1} << k; });
-      if (k >= static_cast<int>(colours_.size())) colours_.resize(k + 1);
-      colours_[k].push_back({begin, end});
+      for (Index k = begin; k < end; ++k) for_each_row(mesh, dofs, element(k), [&](Index r) { used |= row_colours[r]; });
+      if (~used == 0) return false;
+      const int c = std::countr_one(used);
+      for (Index k = begin; k < end; ++k)
+        for_each_row(mesh, dofs, element(k), [&](Index r) { row_colours[r] |= std::uint64_t{1} << c; });
+      if (c >= static_cast<int>(colours_.size())) colours_.resize(c + 1);
+      colours_[c].push_back({begin, end});
     }
+    return true;
+  }
+
+  /// The elements sorted by the Z-order (Morton) code of their centres on a 1024^3 grid over the
+  /// mesh's bounding box; ties keep index order.
+  static std::vector<Index> spatial_order(const Mesh<E>& mesh) {
+    const Index ne = mesh.num_elements();
+    Eigen::Matrix3Xd centre(3, ne);
+    for (Index e = 0; e < ne; ++e) centre.col(e) = mesh.element_nodes(e).rowwise().mean();
+    const Vec3 lo = centre.rowwise().minCoeff(), extent = (centre.rowwise().maxCoeff() - lo).cwiseMax(1e-300);
+    auto spread = [](std::uint64_t v) {  // the 10 bits of v to every third bit
+      std::uint64_t x = v & 0x3ff;
+      x = (x | (x << 16)) & 0x30000ff;
+      x = (x | (x << 8)) & 0x300f00f;
+      x = (x | (x << 4)) & 0x30c30c3;
+      x = (x | (x << 2)) & 0x9249249;
+      return x;
+    };
+    std::vector<std::pair<std::uint64_t, Index>> key(static_cast<size_t>(ne));
+    for (Index e = 0; e < ne; ++e) {
+      std::uint64_t code = 0;
+      for (int d = 0; d < 3; ++d) {
+        const auto q = static_cast<std::uint64_t>(std::clamp(1023.0 * (centre(d, e) - lo[d]) / extent[d], 0.0, 1023.0));
+        code |= spread(q) << d;
+      }
+      key[static_cast<size_t>(e)] = {code, e};
+    }
+    std::sort(key.begin(), key.end());
+    std::vector<Index> order(static_cast<size_t>(ne));
+    for (Index k = 0; k < ne; ++k) order[static_cast<size_t>(k)] = key[static_cast<size_t>(k)].second;
+    return order;
   }
 
   Index num_rows_ = 0;
@@ -265,7 +318,8 @@ class Assembler {
   std::shared_ptr<const BlockPattern> pattern_;
   static constexpr int num_lower = N * (N + 1) / 2;
   std::vector<int> lower_base_;  // [e][lower block k]: see build_pattern
-  std::vector<std::vector<std::pair<Index, Index>>> colours_;  // [colour]: chunks [begin, end)
+  std::vector<std::vector<std::pair<Index, Index>>> colours_;  // [colour]: chunks [begin, end) of positions in order_
+  std::vector<Index> order_;  // the elements in assembly order; empty: index order
   Index chunk_size_ = 16;
   std::vector<char> coupled_;
   std::vector<int> extended_index_;  // element -> index into extended_, -1 if standard (empty: none)
