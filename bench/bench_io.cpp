@@ -20,15 +20,7 @@
 using namespace plastifem;
 
 using plastifem::bench::median;
-
-namespace {
-
-
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-}  // namespace
+using plastifem::bench::ms_since;
 
 int main(int argc, char** argv) {
   int cells = 36, repeat = 7;
@@ -67,10 +59,10 @@ int main(int argc, char** argv) {
     for (int r = 0; r < repeat; ++r) {
       auto t0 = std::chrono::steady_clock::now();
       io::write_vtu(path, mesh, {{"displacement", u}}, {}, options);
-      write.push_back(1e3 * seconds_since(t0));
+      write.push_back(ms_since(t0));
       t0 = std::chrono::steady_clock::now();
       const io::MeshData<Hex8> back = io::read_vtu<Hex8>(path);
-      read.push_back(1e3 * seconds_since(t0));
+      read.push_back(ms_since(t0));
       if (back.mesh.num_nodes() != mesh.num_nodes()) {
         fmt::print(stderr, "bench_io: {} read back {} nodes, wrote {}\n", name, back.mesh.num_nodes(), mesh.num_nodes());
         return 1;

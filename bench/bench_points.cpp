@@ -24,6 +24,7 @@
 
 using namespace plastifem;
 using plastifem::bench::median;
+using plastifem::bench::ms_since;
 using plastifem::bench::split;
 
 namespace {
@@ -43,10 +44,6 @@ std::vector<Vec3> boundary_points(Vec3 box, int n, unsigned seed) {
     X.push_back(p);
   }
   return X;
-}
-
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace

@@ -54,14 +54,13 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverSettings 
     s.add_gravity(Vec3(0, 0, -9.81));
     const auto t0 = std::chrono::steady_clock::now();
     const StepReport r = s.solve_static();
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    ms.push_back(plastifem::bench::ms_since(t0));
     row.dofs = s.num_dofs();
     row.newton = r.newton_iterations;
     row.linear = r.linear_iterations;
     row.tip_uz = s.displacement(tip).z();
   }
-  std::sort(ms.begin(), ms.end());
-  row.median_ms = ms[ms.size() / 2];
+  row.median_ms = plastifem::bench::median(ms);
   return row;
 }
 

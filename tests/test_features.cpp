@@ -253,13 +253,13 @@ TEST_CASE("a given acceleration is kept until the loads, constraints, mass or da
     if (given) s->set_acceleration(a_given);
     return std::tuple{std::move(s), pull, held};
   };
-  auto step_after = [&](bool given, const std::function<void(S&, LoadHandle, ConstraintHandle)>& change) {
+  using Change = std::function<void(S&, LoadHandle, ConstraintHandle)>;
+  auto step_after = [&](bool given, const Change& change) {
     auto [s, pull, held] = make(given);
     change(*s, pull, held);
     s->step(0.01);
     return Vector(s->displacement());
   };
-  using Change = std::function<void(S&, LoadHandle, ConstraintHandle)>;
   const std::vector<std::pair<const char*, Change>> balance_changes{
       {"add a load", [](S& s, LoadHandle, ConstraintHandle) { s.add_gravity(Vec3(0, 0, -1)); }},
       {"remove a load", [](S& s, LoadHandle h, ConstraintHandle) { s.remove_load(h); }},
@@ -299,6 +299,16 @@ TEST_CASE("a given acceleration is kept until the loads, constraints, mass or da
     s.set_settings(st);
   });
   CHECK((other.array() == unchanged.array()).all());
+  // A change undone before the step: the acceleration balances the same system again and stays.
+  const Vector undone = step_after(true, [](S& s, LoadHandle, ConstraintHandle) {
+    SolverSettings st = s.settings();
+    const SolverSettings original = st;
+    st.mass = MassKind::Lumped;
+    st.rayleigh_mass = 0.3;
+    s.set_settings(st);
+    s.set_settings(original);
+  });
+  CHECK((undone.array() == unchanged.array()).all());
 }
 
 // ---- step cutting --------------------------------------------------------------------------
