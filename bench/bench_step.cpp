@@ -12,7 +12,14 @@
 // with several scenes a scaling table: ms per step against element count, with the exponent p
 // of a least-squares fit ms ~ elements^p.
 //
-//   bench_step [--scenes bar90,bar720,...] [--elements hex8,tet4,tet10] [--threads 1,2] [--csv FILE]
+// Scenes: the SCENES.md bars (bar90 ... bar46080) and bar368640 (160 x 48 x 48, the next size
+// in their series of 8x: 368,640 hexes, 386,561 nodes), and Gmsh Tet4 meshes given by --msh
+// (bench/organ_mesh.cpp makes unstructured liver meshes of 2.6k to 0.8M tetrahedra, every
+// element different), named by their file and stepped with the bars' material, gravity and dt,
+// clamped at their nodes within 2% of their length from their lowest x; their tip is the node of
+// largest x.
+//
+//   bench_step [--scenes bar90,bar720,...] [--msh a.msh,b.msh] [--elements hex8,tet4,tet10] [--threads 1,2] [--csv FILE]
 //              [--models linear,corotational,corotational-warped,corotational-element,neohookean,
 //                        stable-neohookean,plastic]
 //              (plastic: Corotational, CorotationalPerElement and NeoHookean with VertexBlended or
@@ -23,6 +30,7 @@
 //              [--after T] (T seconds of the scene first, not timed: the 100 measured steps then
 //               run from t = T, e.g. --after 3 on a bar that has sagged to 20% strain; the tip
 //               column is then at t = T + 1 s)
+#include <plastifem/mesh/io/io.hpp>
 #include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
@@ -32,8 +40,10 @@
 #include <fmt/os.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <map>
 
 #ifdef __GLIBC__
@@ -51,6 +61,39 @@ using namespace plastifem;
 using plastifem::bench::split;
 
 namespace {
+
+/// A scene's mesh, its clamped nodes and the node whose displacement is printed.
+template <class E>
+struct Scene {
+  std::string name;
+  Mesh<E> mesh;
+  std::vector<Index> clamped;
+  Index tip = 0;
+};
+
+/// A bar: SCENES.md's sizes and bar368640, clamped at x = 0, the tip at its far top corner.
+template <class E>
+Scene<E> bar_scene(const std::string& name) {
+  const auto [nx, ny, nz] = name == "bar368640" ? std::array<int, 3>{160, 48, 48} : bar_scene_cells(name);
+  Scene<E> s{name, bar_mesh<E>(nx, ny, nz), {}, 0};
+  s.clamped = s.mesh.node_set("xmin");
+  for (Index i : s.mesh.node_set("xmax"))
+    if (s.mesh.node(i).y() == ny && s.mesh.node(i).z() == nz) s.tip = i;
+  return s;
+}
+
+/// A Gmsh mesh of Tet4 (the organ meshes): clamped within 2% of its length from its lowest x,
+/// the tip at its largest x.
+Scene<Tet4> msh_scene(const std::string& file) {
+  Scene<Tet4> s{std::filesystem::path(file).stem().string(), io::read_gmsh<Tet4>(file, {.drop_unused_nodes = true}), {}, 0};
+  const auto x = s.mesh.nodes().row(0);
+  const Scalar x0 = x.minCoeff(), length = x.maxCoeff() - x0;
+  for (Index i = 0; i < s.mesh.num_nodes(); ++i) {
+    if (x[i] <= x0 + 0.02 * length) s.clamped.push_back(i);
+    if (x[i] > x[s.tip]) s.tip = i;
+  }
+  return s;
+}
 
 struct Row {
   std::string scene, element, model, solver, mode;
@@ -79,9 +122,9 @@ Scalar after_seconds = 0;
 /// the gravity load does not reach: the cost of carrying plasticity in a scene that stays
 /// elastic (bench_policy_overhead also measures it flowing).
 template <class E, class Model, class P = NoPlasticity>
-Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind, NewmarkMode mode, int threads,
-            bool exact_tangent = true, int cg_cap = 0) {
-  const auto [nx, ny, nz] = bar_scene_cells(scene);
+Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int threads, bool exact_tangent = true,
+            int cg_cap = 0) {
+  const Mesh<E>& mesh = scene.mesh;
   SolverSettings st;
   st.newton.exact_tangent = exact_tangent;
   st.linear = {kind, 1e-6, cg_cap > 0 ? cg_cap : 1000};  // CG to 1e-6 relative, warm-started (SCENES / issue targets)
@@ -95,11 +138,9 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   typename P::Params pp{};
   if constexpr (P::active) pp.yield_stress = 1e4, pp.flow_rate = 0.4, pp.hardening = 0.2;
   Solver<E, Model, P> s(mesh, Material{3000, 0.45, 1.0}, st, pp);
-  s.fix(mesh.node_set("xmin"));
+  s.fix(scene.clamped);
   s.add_gravity(Vec3(0, 0, -9.81));
-  Index tip = 0;
-  for (Index i : mesh.node_set("xmax"))
-    if (mesh.node(i).y() == ny && mesh.node(i).z() == nz) tip = i;
+  const Index tip = scene.tip;
   for (long k = std::lround(after_seconds / 0.01); k > 0; --k) s.step(0.01);
   std::vector<double> ms;
   double newton = 0, lin = 0;
@@ -117,7 +158,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
   const double n = static_cast<double>(ms.size());
   std::string model = exact_tangent ? Model::name : fmt::format("{} (warped)", Model::name);
   if constexpr (P::active) model += P::per_vertex_rotation ? "+VB" : "+CC";
-  return {scene, E::name, model,
+  return {scene.name, E::name, model,
           kind == LinearSolverKind::Direct ? std::string(direct_solver_name(DirectSolver::Auto)) : cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
           threads, s.num_dofs(), mesh.num_elements(), peak - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
 }
@@ -125,7 +166,7 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, LinearSolverKind kind
 }  // namespace
 
 int main(int argc, char** argv) try {
-  std::vector<std::string> scenes{"bar90", "bar720"};
+  std::vector<std::string> scenes{"bar90", "bar720"}, msh;
   std::vector<int> threads{1, 2};
   std::vector<std::string> elements{"hex8", "tet4", "tet10"};
   std::vector<std::string> models{"linear",     "corotational",      "corotational-warped", "corotational-element",
@@ -137,6 +178,7 @@ int main(int argc, char** argv) try {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
     else if (i + 1 < argc && a == "--scenes") scenes = split(argv[++i]);
+    else if (i + 1 < argc && a == "--msh") msh = split(argv[++i]);
     else if (i + 1 < argc && a == "--csv") csv = argv[++i];
     else if (i + 1 < argc && a == "--cg-cap") cg_cap = std::stoi(argv[++i]);
     else if (i + 1 < argc && a == "--after") {
@@ -173,9 +215,8 @@ int main(int argc, char** argv) try {
     rows.push_back(r);
   };
   auto want = [&](const char* m) { return std::find(models.begin(), models.end(), m) != models.end(); };
-  auto scene_rows = [&]<class E>(const std::string& scene) {
-    const auto [nx, ny, nz] = bar_scene_cells(scene);
-    const auto mesh = bar_mesh<E>(nx, ny, nz);
+  auto scene_rows = [&]<class E>(const Scene<E>& scene) {
+    const auto& mesh = scene.mesh;
     // LDLT: the linear model factorises once; nonlinear models refactorise every Newton
     // iteration, which only pays on small scenes.
     const bool direct_ok = mesh.num_nodes() < 2000;
@@ -183,44 +224,45 @@ int main(int argc, char** argv) try {
     constexpr auto accurate = NewmarkMode::Accurate, realtime = NewmarkMode::RealTime;
     for (int t : threads) {
       if (want("linear")) {
-        emit(measure<E, Linear>(scene, mesh, CG, accurate, t));
-        emit(measure<E, Linear>(scene, mesh, LDLT, accurate, t));
+        emit(measure<E, Linear>(scene, CG, accurate, t));
+        emit(measure<E, Linear>(scene, LDLT, accurate, t));
       }
       if (want("corotational")) {
-        emit(measure<E, Corotational>(scene, mesh, CG, accurate, t));
-        if (!quick) emit(measure<E, Corotational>(scene, mesh, CG, realtime, t));
-        if (!quick && cg_cap > 0) emit(measure<E, Corotational>(scene, mesh, CG, realtime, t, true, cg_cap));
-        if (direct_ok && !quick) emit(measure<E, Corotational>(scene, mesh, LDLT, accurate, t));
+        emit(measure<E, Corotational>(scene, CG, accurate, t));
+        if (!quick) emit(measure<E, Corotational>(scene, CG, realtime, t));
+        if (!quick && cg_cap > 0) emit(measure<E, Corotational>(scene, CG, realtime, t, true, cg_cap));
+        if (direct_ok && !quick) emit(measure<E, Corotational>(scene, LDLT, accurate, t));
       }
       if (want("corotational-warped")) {
-        emit(measure<E, Corotational>(scene, mesh, CG, accurate, t, false));
-        if (!quick) emit(measure<E, Corotational>(scene, mesh, CG, realtime, t, false));
+        emit(measure<E, Corotational>(scene, CG, accurate, t, false));
+        if (!quick) emit(measure<E, Corotational>(scene, CG, realtime, t, false));
       }
       if (!std::is_same_v<E, Tet4> && want("corotational-element")) {  // identical to Corotational on Tet4
-        emit(measure<E, CorotationalPerElement>(scene, mesh, CG, accurate, t));
-        if (!quick) emit(measure<E, CorotationalPerElement>(scene, mesh, CG, realtime, t));
-        if (!quick && cg_cap > 0) emit(measure<E, CorotationalPerElement>(scene, mesh, CG, realtime, t, true, cg_cap));
+        emit(measure<E, CorotationalPerElement>(scene, CG, accurate, t));
+        if (!quick) emit(measure<E, CorotationalPerElement>(scene, CG, realtime, t));
+        if (!quick && cg_cap > 0) emit(measure<E, CorotationalPerElement>(scene, CG, realtime, t, true, cg_cap));
       }
       if (want("neohookean")) {
-        emit(measure<E, NeoHookean>(scene, mesh, CG, accurate, t));
-        if (!quick) emit(measure<E, NeoHookean>(scene, mesh, CG, realtime, t));
+        emit(measure<E, NeoHookean>(scene, CG, accurate, t));
+        if (!quick) emit(measure<E, NeoHookean>(scene, CG, realtime, t));
       }
-      if (!quick && want("stable-neohookean")) emit(measure<E, StableNeoHookean>(scene, mesh, CG, accurate, t));
+      if (!quick && want("stable-neohookean")) emit(measure<E, StableNeoHookean>(scene, CG, accurate, t));
       if (want("plastic")) {  // seed 000: the plastic policies on the elastic scene
-        emit(measure<E, Corotational, VertexBlended>(scene, mesh, CG, accurate, t));
-        emit(measure<E, Corotational, CellCentered>(scene, mesh, CG, accurate, t));
-        emit(measure<E, Corotational, VertexBlended>(scene, mesh, CG, realtime, t));
-        if (!std::is_same_v<E, Tet4>) emit(measure<E, CorotationalPerElement, VertexBlended>(scene, mesh, CG, realtime, t));
-        emit(measure<E, NeoHookean, VertexBlended>(scene, mesh, CG, accurate, t));
+        emit(measure<E, Corotational, VertexBlended>(scene, CG, accurate, t));
+        emit(measure<E, Corotational, CellCentered>(scene, CG, accurate, t));
+        emit(measure<E, Corotational, VertexBlended>(scene, CG, realtime, t));
+        if (!std::is_same_v<E, Tet4>) emit(measure<E, CorotationalPerElement, VertexBlended>(scene, CG, realtime, t));
+        emit(measure<E, NeoHookean, VertexBlended>(scene, CG, accurate, t));
       }
     }
   };
+  auto wanted = [&](const char* e) { return std::find(elements.begin(), elements.end(), e) != elements.end(); };
   for (const auto& scene : scenes) {
-    auto wanted = [&](const char* e) { return std::find(elements.begin(), elements.end(), e) != elements.end(); };
-    if (wanted("hex8")) scene_rows.operator()<Hex8>(scene);
-    if (wanted("tet4")) scene_rows.operator()<Tet4>(scene);
-    if (wanted("tet10")) scene_rows.operator()<Tet10>(scene);
+    if (wanted("hex8")) scene_rows(bar_scene<Hex8>(scene));
+    if (wanted("tet4")) scene_rows(bar_scene<Tet4>(scene));
+    if (wanted("tet10")) scene_rows(bar_scene<Tet10>(scene));
   }
+  for (const auto& file : msh) scene_rows(msh_scene(file));
   // Scaling: the same configuration over several scenes, and the fitted exponent.
   std::map<std::string, std::vector<const Row*>> series;
   for (const Row& r : rows) series[fmt::format("{} {} {} {} {}t", r.element, r.model, r.solver, r.mode, r.threads)].push_back(&r);

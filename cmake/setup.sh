@@ -17,11 +17,13 @@
 #                                 installs clang; fuzz/README.md)
 #   bash cmake/setup.sh build-time  what including the toolkit costs the compiler
 #                                 (docs/build_time.md): CPU seconds and peak memory per translation unit
-#   bash cmake/setup.sh bench [step|static|policy|io|scenes] [options]
+#   bash cmake/setup.sh bench [step|static|policy|io|scenes|organ] [options]
 #                                 a benchmark (tables + CSV into build/bench/): ms per Newmark
 #                                 step (default), per static solve, or the NoPlasticity /
 #                                 NoEnrichment overhead ratio, or per VTU write and read, or the
-#                                 surgical scenes' step and event times (bench/scenes.sh)
+#                                 surgical scenes' step and event times (bench/scenes.sh), or
+#                                 steps on unstructured Tet4 liver meshes (organ [levels, default
+#                                 3,4,5] [bench_step options]; installs gmsh, which meshes them)
 #   bash cmake/setup.sh study     the accuracy-vs-cost study (docs/study.md): CSV into build/bench/,
 #                                 plot into docs/speed_accuracy.png (~7 min, single-threaded)
 # Environment: BUILD_DIR (default build, or build-sanitize), JOBS (default: number of cores).
@@ -144,6 +146,16 @@ case "$what" in
       cmake --build "$build" -j "$jobs" --target surgical_scenes
       mkdir -p "$build/bench"
       bash bench/scenes.sh "$build" "$build/bench/scenes.csv" "${@:3}"
+      exit 0
+    fi
+    if [ "${2:-}" = organ ]; then
+      install_missing gmsh
+      cmake --build "$build" -j "$jobs" --target organ_mesh bench_step
+      mkdir -p "$build/bench"
+      levels=${3:-3,4,5}
+      "$build/bench/organ_mesh" --levels "$levels" --out "$build/bench/organ"
+      msh=$(for k in ${levels//,/ }; do printf '%s,' "$build/bench/organ/liver$k.msh"; done)
+      "$build/bench/bench_step" --scenes "" --msh "${msh%,}" --csv "$build/bench/organ.csv" "${@:4}"
       exit 0
     fi
     target=bench_$which; [ "$which" = policy ] && target=bench_policy_overhead
