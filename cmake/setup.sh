@@ -152,10 +152,11 @@ case "$what" in
       install_missing gmsh
       cmake --build "$build" -j "$jobs" --target organ_mesh bench_step
       mkdir -p "$build/bench"
-      levels=${3:-3,4,5}
+      levels=3,4,5; rest=("${@:3}")
+      if [[ "${3:-}" =~ ^[0-9]+(,[0-9]+)*$ ]]; then levels=$3; rest=("${@:4}"); fi
       "$build/bench/organ_mesh" --levels "$levels" --out "$build/bench/organ"
       msh=$(for k in ${levels//,/ }; do printf '%s,' "$build/bench/organ/liver$k.msh"; done)
-      "$build/bench/bench_step" --scenes "" --msh "${msh%,}" --csv "$build/bench/organ.csv" "${@:4}"
+      "$build/bench/bench_step" --scenes "" --msh "${msh%,}" --csv "$build/bench/organ.csv" "${rest[@]}"
       exit 0
     fi
     target=bench_$which; [ "$which" = policy ] && target=bench_policy_overhead

@@ -314,8 +314,9 @@ TEST_CASE("a mesh numbered without spatial coherence assembles in spatial order,
     K.push_back(s.tangent());
   }
   REQUIRE(u[0].norm() > 0);
-  // Newton to 1e-8 and CG to 1e-6 relative: the order of summation moves u by far less.
-  CHECK((u[1] - u[0]).norm() <= 1e-6 * u[0].norm());
+  // Newton stops at |r| <= 1e-6 relative (CG 1e-8): another summation order can end Newton one
+  // iteration earlier or later, which moves u by about that tolerance; 1e-5 leaves it room.
+  CHECK((u[1] - u[0]).norm() <= 1e-5 * u[0].norm());
   CHECK((f[1] - f[0]).norm() <= 1e-12 * f[0].norm() + 1e-12 * (f[1] - f[0]).size());
   CHECK((Eigen::MatrixXd(K[1]) - Eigen::MatrixXd(K[0])).norm() <= 1e-12 * Eigen::MatrixXd(K[0]).norm());
   CHECK((u[2] - u[1]).norm() <= 1e-12 * u[1].norm());

@@ -14,7 +14,7 @@
 // mesh each, at least 16 elements; in a spatial order instead if the mesh's numbering has no
 // coherence: build_colours), and the chunks are greedily coloured so that no two chunks
 // of one colour share a row. Colours run one after the other, the chunks of a colour in
-// parallel, the elements of a chunk in index order. Each matrix entry then receives its
+// parallel, the elements of a chunk in their (index or spatial) order. Each matrix entry then receives its
 // contributions in the same order whatever the thread count, so results are bit-identical
 // from 1 to N threads, with no atomics and no critical sections; and consecutive elements
 // (neighbours, in a mesh numbered with any spatial coherence: the generators, Gmsh) touch the
@@ -76,7 +76,8 @@ class Assembler {
   const std::vector<char>& coupled_rows() const { return coupled_; }
 
   /// Runs body(e) for every element: colour by colour, the chunks of a colour in parallel, the
-  /// elements of a chunk in index order (the same order for any thread count).
+  /// elements of a chunk in the assembly order (index order, or build_colours' spatial one; the
+  /// same for any thread count).
   template <class Body>
   void for_each_element(Body&& body, int threads = 0) const {
     for (const auto& colour : colours_) {

@@ -113,9 +113,9 @@ class BlockSymmetricMatrix {
   /// before an assembly, forming A = cm M + K) made by one thread leaves the values in that
   /// core's cache, and the other thread's product or scatter then waits while each line
   /// travels: on bar5760 Hex8 with 2 threads a serial form and the 7 products after it took
-  /// 2.4 ms, a threaded one 1.7-2.0; a serial zeroing and the scatter after it 1.2 ms, a
-  /// threaded one 0.9 (docs/performance.md). Elementwise passes: the same values whatever the
-  /// thread count.
+  /// 1.78 ms, a threaded one 1.21; a serial zeroing and the scatter after it 0.93 ms, a
+  /// threaded one 0.68 (bench_memory, docs/performance.md). Elementwise passes: the same values
+  /// whatever the thread count.
   template <class Pass>
   void for_value_ranges(int threads, Pass&& pass) const {
 #ifdef _OPENMP
