@@ -78,8 +78,7 @@ int main(int argc, char** argv) try {
     const Mesh<Tet4> mesh = io::read_gmsh<Tet4>(dir / (name + ".msh"), {.drop_unused_nodes = true});
     Scalar vmin = 1e300, vmax = 0;
     for (Index e = 0; e < mesh.num_elements(); ++e) {
-      const auto X = mesh.element_nodes(e);
-      const Scalar v = std::abs((X.col(1) - X.col(0)).cross(X.col(2) - X.col(0)).dot(X.col(3) - X.col(0))) / 6;
+      const Scalar v = element_volume<Tet4>(mesh.element_nodes(e));  // the reader refuses inverted ones
       vmin = std::min(vmin, v), vmax = std::max(vmax, v);
     }
     fmt::print("{:>5} {:>9} {:>9} {:>10.1f} {:>14.1f}\n", k, mesh.num_nodes(), mesh.num_elements(), 2 * size, vmax / vmin);

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <random>
 
 using namespace plastifem;
@@ -268,10 +269,41 @@ TEST_CASE("value passes with threads cover every value once and equal the serial
   CHECK(std::equal(A.values(), A.values() + A.num_values(), B.values()));
   A.set_zero(2);
   CHECK(std::all_of(A.values(), A.values() + A.num_values(), [](Scalar v) { return v == 0; }));
+  A = B;  // same pattern: the values only
+  CHECK(std::equal(A.values(), A.values() + A.num_values(), B.values()));
+  // A Newton matrix a X + Y + b Z, with and without Z: on any thread count the same bits as on
+  // one; and the formula's value, checked on dyadic values (multiples of 1/1024, a = 1/2,
+  // b = 1/4), whose products and sums are exact with or without fused multiply-adds.
+  BlockSymmetricMatrix Y = assembler.zero_matrix(), Z = assembler.zero_matrix(), serial = assembler.zero_matrix();
+  for (Index i = 0; i < A.num_values(); ++i) Y.values()[i] = u(rng), Z.values()[i] = u(rng);
+  auto same_bits = [](const BlockSymmetricMatrix& P, const BlockSymmetricMatrix& Q) {
+    return std::equal(P.values(), P.values() + P.num_values(), Q.values());
+  };
+  for (const BlockSymmetricMatrix* z : std::array<const BlockSymmetricMatrix*, 2>{&Z, nullptr}) {
+    serial.set_combination(1.0 / 3, B, Y, 0.7, z, 1);
+    for (int threads : {2, 3}) {
+      CAPTURE(threads, z != nullptr);
+      A.set_combination(1.0 / 3, B, Y, 0.7, z, threads);
+      CHECK(same_bits(A, serial));
+    }
+  }
+  auto dyadic = [](Scalar x) { return std::round(1024 * x) / 1024; };
+  for (Index i = 0; i < A.num_values(); ++i)
+    B.values()[i] = dyadic(B.values()[i]), Y.values()[i] = dyadic(Y.values()[i]), Z.values()[i] = dyadic(Z.values()[i]);
+  A.set_combination(0.5, B, Y, 0.25, &Z, 2);
+  bool exact = true;
+  for (Index i = 0; i < A.num_values(); ++i)
+    exact = exact && A.values()[i] == 0.5 * B.values()[i] + Y.values()[i] + 0.25 * Z.values()[i];
+  CHECK(exact);
+  A.set_combination(0.5, B, Y, 0, nullptr, 2);  // without damping, as System::form mostly runs
+  for (Index i = 0; i < A.num_values(); ++i) exact = exact && A.values()[i] == 0.5 * B.values()[i] + Y.values()[i];
+  CHECK(exact);
   // Another pattern's values would be read out of order: refused.
   const Assembler<Hex8> other(bar_mesh<Hex8>(20, 6, 5));
   BlockSymmetricMatrix C = other.zero_matrix();
   CHECK_THROWS_AS(A.copy_values(C, 2), Error);
+  CHECK_THROWS_AS(A.set_combination(0.5, B, C, 0, nullptr, 2), Error);
+  CHECK_THROWS_AS(A.set_combination(0.5, B, Y, 0.25, &C, 2), Error);
 }
 
 TEST_CASE("a mesh numbered without spatial coherence assembles in spatial order, equal to its coherent copy",

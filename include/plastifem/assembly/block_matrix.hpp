@@ -80,7 +80,7 @@ class BlockSymmetricMatrix {
   BlockSymmetricMatrix& operator=(const BlockSymmetricMatrix& o) {
     if (this == &o) return *this;
     if (pattern_ && pattern_ == o.pattern_) {
-      std::copy(o.values_.begin(), o.values_.end(), values_.begin());
+      copy_values(o);
       return *this;
     }
     return *this = BlockSymmetricMatrix(o);  // another pattern: a whole copy
@@ -104,6 +104,22 @@ class BlockSymmetricMatrix {
     if (o.pattern_ != pattern_) fail<Error>("copy_values: the matrices have different patterns");
     for_value_ranges(threads, [&](Index v0, Index v1) {
       std::copy(o.values_.data() + v0, o.values_.data() + v1, values_.data() + v0);
+    });
+  }
+  /// This = a X + Y, plus b Z when Z is given (a Newton matrix cm M + K + cd Kd), all of this
+  /// pattern: one pass over the values with up to `threads` threads (for_value_ranges), each
+  /// value computed as written whatever the thread count.
+  void set_combination(Scalar a, const BlockSymmetricMatrix& X, const BlockSymmetricMatrix& Y, Scalar b = 0,
+                       const BlockSymmetricMatrix* Z = nullptr, int threads = 1) {
+    if (X.pattern_ != pattern_ || Y.pattern_ != pattern_ || (Z && Z->pattern_ != pattern_))
+      fail<Error>("set_combination: the matrices have different patterns");
+    Scalar* out = values_.data();
+    const Scalar *x = X.values_.data(), *y = Y.values_.data(), *z = Z ? Z->values_.data() : nullptr;
+    for_value_ranges(threads, [&](Index v0, Index v1) {
+      if (z)
+        for (Index i = v0; i < v1; ++i) out[i] = a * x[i] + y[i] + b * z[i];
+      else
+        for (Index i = v0; i < v1; ++i) out[i] = a * x[i] + y[i];
     });
   }
 
@@ -182,6 +198,7 @@ class BlockSymmetricMatrix {
     // Below ~3000 blocks (bar720: 13k) a thread's start-up costs more than its half of the work.
     if (threads > 1 && p.num_blocks() > 3000) {
       prepare_split(threads);
+      prepare_buffers(threads);
 #pragma omp parallel num_threads(threads)
       {
         if (omp_get_num_threads() != threads) {  // fewer threads granted (nested region): serial
@@ -268,10 +285,17 @@ class BlockSymmetricMatrix {
     split_[0] = 0;
     Index I = 0;
     for (int t = 1; t < threads; ++t) {
-      const Index target = p.num_blocks() * t / threads;
+      // 64-bit: num_blocks * t passes 2^31 at ~33 million blocks on 64 threads.
+      const auto target = std::int64_t{p.num_blocks()} * t / threads;
       while (I < p.num_block_rows && p.row_start[I] < target) ++I;
       split_[t] = I;
     }
+    buffers_.clear();  // of the old split; the product sizes them (prepare_buffers)
+  }
+  /// The product's buffers for threads 1.. of the split: the rows before each thread's range
+  /// (only matrices that are multiplied need them).
+  void prepare_buffers(int threads) const {
+    if (static_cast<int>(buffers_.size()) == threads) return;
     buffers_.assign(threads, Vector());
     for (int t = 1; t < threads; ++t) buffers_[t] = Vector::Zero(3 * split_[t]);
   }
