@@ -156,6 +156,27 @@ TEST_CASE("a failed step or solve leaves the whole state bit for bit, whatever f
     s.set_settings(one);
     expect_rollback<SolverError>(s, [&] { s.solve_static(); }, "static Newton did not converge");
   }
+  SECTION("a static solve that fails between real-time steps") {
+    // The real-time step keeps its linearisation (f_int and K at u_n) from the end of the step
+    // before. The failed static solve leaves the state as it was but wrote K at its own
+    // iterates (three Newton iterations per attempt): the next step must see that K is no
+    // longer the one it made (System::tangent_stamp) and equal the twin's that never solved,
+    // bit for bit. Both change their settings the same way, so only the failed solve tells them
+    // apart. (Without the stamp, the next step used the static solve's last K: checked by
+    // removing it, both CHECKs failed.)
+    const SolverSettings rt = mode_settings(NewmarkMode::RealTime);
+    SolverSettings bad = rt;
+    bad.newton.max_iterations = 3;
+    bad.newton.residual_tolerance = 1e-15;
+    Solver<Hex8, Corotational> s(mesh, soft, rt), twin(mesh, soft, rt);
+    set_up(s, mesh);
+    set_up(twin, mesh);
+    for (auto* x : {&s, &twin}) x->step(0.01), x->step(0.01), x->set_settings(bad);
+    expect_rollback<SolverError>(s, [&] { s.solve_static(); }, "static Newton did not converge");
+    for (auto* x : {&s, &twin}) x->set_settings(rt), x->step(0.01);
+    CHECK((s.displacement().array() == twin.displacement().array()).all());
+    CHECK((s.velocity().array() == twin.velocity().array()).all());
+  }
 }
 
 TEST_CASE("dof map growth: slots no element couples leave every step bit for bit unchanged", "[state][dofmap]") {

@@ -6,7 +6,8 @@
 // memory), and rest shapes that can change during a run (plasticity), copy-on-write.
 //
 // Every change bumps epoch(), which invalidates what was derived from the rest shapes (a
-// linear model's assembled constant tangent, a constant tangent's Rayleigh damping stiffness).
+// linear model's assembled constant tangent, a constant tangent's Rayleigh damping stiffness,
+// the real-time step's linearisation: each records the epoch it was made at).
 // check_rest_shape(X) is the per-element rest-shape test (positive Jacobian at every corner and
 // quadrature point) a plastic update runs before it commits a new shape.
 #include <plastifem/assembly/shared_by_shape.hpp>

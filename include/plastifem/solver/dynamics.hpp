@@ -118,13 +118,7 @@ class Dynamics {
     for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_, &damping_,
                       &path_.u, &path_.v, &path_.a, &first_increment_, &u_rel_, &history_})
       x->setZero(n);
-    invalidate();
-  }
-  /// Forgets the real-time linearisation and the damping stiffness (the element data or the
-  /// matrices changed).
-  void invalidate() {
-    linearisation_serial_ = 0;
-    damping_valid_ = false;
+    linearisation_ = {};
   }
 
   /// n -> trial by one step of dt; the trial state gets `serial`. Throws SolverError on failure.
@@ -179,9 +173,8 @@ class Dynamics {
     if constexpr (constant_tangent) {
       const auto epoch = p.body.data().epoch();
       if (!p.system.constant_tangent_current(epoch)) {
-        p.body.assemble(u, f, &p.system.K, kind, p.threads);
+        p.system.assemble(p.body, u, f, true, kind, p.threads);
         p.system.set_constant_tangent_current(epoch);
-        p.system.forget_coefficients();
       }
       if (p.body.has_rest_displacement()) {  // plastic flow moved the rest shapes: f = K (u - u_rest)
         u_rel_ = u - p.body.rest_displacement();
@@ -191,7 +184,7 @@ class Dynamics {
       }
       return f.allFinite();
     } else {
-      return p.body.assemble(u, f, with_tangent ? &p.system.K : nullptr, kind, p.threads);
+      return p.system.assemble(p.body, u, f, with_tangent, kind, p.threads);
     }
   }
 
@@ -201,18 +194,11 @@ class Dynamics {
     add_rayleigh_damping(p.system.M, p.system.Kd, p.settings, v, factor, out, work_, p.threads);
   }
 
-  /// The system's Kd = K_proj(u) (file comment). A constant tangent's is K0 of the current rest
-  /// shapes at every u: assembled once per rest-shape epoch. false if some element cannot be
-  /// evaluated at u (inverted, for an energy with ln J).
-  bool damping_stiffness_at(Parts& p, const Vector& u) {
+  /// The system's Kd = K_proj(u) (file comment; System::damping_stiffness_at). false if some
+  /// element cannot be evaluated at u (inverted, for an energy with ln J).
+  static bool damping_stiffness_at(Parts& p, const Vector& u) {
     if (p.settings.rayleigh_stiffness == 0) return true;
-    const auto epoch = p.body.data().epoch();
-    if (constant_tangent && damping_valid_ && damping_epoch_ == epoch &&
-        p.system.Kd.num_values() == p.system.K.num_values())
-      return true;
-    damping_valid_ = p.system.assemble_damping_stiffness(p.body, u, p.threads);
-    damping_epoch_ = epoch;
-    return damping_valid_;
+    return p.system.damping_stiffness_at(p.body, u, constant_tangent, p.threads);
   }
 
   /// " (element e is inverted ...)" for a non-finite force at u, or "" if none is found.
@@ -488,12 +474,12 @@ class Dynamics {
     start_step(p, n, dt);
     TangentKind kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
     // The linearisation at u_n: kept from the end of the previous step when that step made
-    // this state; else assembled now.
-    if (linearisation_serial_ == 0 || linearisation_serial_ != n.serial) {
+    // this state and nothing has changed K or the rest shapes since; else assembled now.
+    if (!linearisation_.of(p, n, kind)) {
       if (!evaluate(p, n.u, f_lin_, true, kind))
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
-      linearisation_serial_ = n.serial;
+      linearisation_ = Linearisation::at(p, n.serial, kind);
     }
     if (nm.weighted()) weighted_history(p, n, nm, f_lin_);
     const auto coefficients = nm.matrix(st.rayleigh_mass, st.rayleigh_stiffness);
@@ -537,11 +523,11 @@ class Dynamics {
     } catch (const SolverError&) {
       if (kind != TangentKind::Exact) throw;
       kind = TangentKind::Projected;  // indefinite exact tangent: the projected one
-      linearisation_serial_ = 0;
+      linearisation_ = {};
       if (!evaluate(p, n.u, f_lin_, true, kind))
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
-      linearisation_serial_ = n.serial;
+      linearisation_ = Linearisation::at(p, n.serial, kind);
       linear_residual();
       lr = solve();
     }
@@ -549,12 +535,13 @@ class Dynamics {
     u_ += du_;
     // Beyond the linearisation's reach (NewmarkSettings::realtime_reach, if set), the step is
     // redone as an accurate one from n.
-    linearisation_serial_ = 0;
+    linearisation_ = {};  // the accurate redo or the evaluation below writes K
     if (const Scalar reach = st.newmark.realtime_reach;
         std::isfinite(reach) && !(largest_edge_change(p.body.mesh(), n.u, u_, p.threads) <= reach))
       return redone(p, n, trial, dt, serial, t0, lr.iterations);
     // The new state, evaluated: the check, the reported residual, and the next linearisation.
-    const bool ok = evaluate(p, u_, f_int_, true, use_exact(st) ? TangentKind::Exact : TangentKind::Projected);
+    const TangentKind next_kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
+    const bool ok = evaluate(p, u_, f_int_, true, next_kind);
     if (!ok || !u_.allFinite())
       fail<SolverError>("real-time step at t = {}: the new state cannot be evaluated{}; the state is unchanged", t1,
                         where_invalid(p, u_));
@@ -567,7 +554,7 @@ class Dynamics {
       fail<SolverError>("real-time step at t = {} produced non-finite values; the state is unchanged", t1);
     store(p, n, trial, dt, serial, true);
     f_lin_.swap(f_int_);
-    linearisation_serial_ = serial;  // valid for the trial state, if it is committed
+    linearisation_ = Linearisation::at(p, serial, next_kind);  // the trial state's, if it is committed
     StepReport rep;
     rep.newton_iterations = 1;
     rep.linear_iterations = lr.iterations;
@@ -614,9 +601,21 @@ class Dynamics {
   Vector history_;  ///< generalized-alpha's h_n for the step under way
   PathValues path_;
   Index path_jumps_ = 0;  ///< nodes whose path jumps at the step's end (Constraints::evaluate)
-  std::uint64_t linearisation_serial_ = 0;  ///< the state f_lin_ and the system's K belong to (0: none)
-  std::uint64_t damping_epoch_ = 0;  ///< the rest shapes of a constant tangent's Kd
-  bool damping_valid_ = false;
+  /// What f_lin_ and the system's K are the linearisation of: the state (its serial), the K
+  /// (System::tangent_stamp), the rest shapes (the element data's epoch) and the tangent kind.
+  /// Each is compared, so nothing outside has to say when the linearisation goes stale.
+  struct Linearisation {
+    std::uint64_t state = 0, tangent = 0, rest_shapes = 0;  // tangent 0: none
+    TangentKind kind = TangentKind::Projected;
+    static Linearisation at(const Parts& p, std::uint64_t state, TangentKind kind) {
+      return {state, p.system.tangent_stamp(), p.body.data().epoch(), kind};
+    }
+    bool of(const Parts& p, const StateT& n, TangentKind k) const {
+      return tangent != 0 && state == n.serial && tangent == p.system.tangent_stamp() &&
+             rest_shapes == p.body.data().epoch() && kind == k;
+    }
+  };
+  Linearisation linearisation_;
 };
 
 }  // namespace plastifem

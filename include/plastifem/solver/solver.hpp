@@ -244,17 +244,14 @@ class Solver {
     Solving& operator=(const Solving&) = delete;
   };
 
-  /// Brings the element data to state s's rest shapes (plastic flow); forgets what was derived
-  /// from the old ones.
-  void sync_rest_shapes(const StateType& s) {
-    if (plastic_.sync(body_, s.plastic, threads())) dynamics_.invalidate();  // the real-time linearisation was of the old shapes
-  }
+  /// Brings the element data to state s's rest shapes (plastic flow). What was derived from the
+  /// old ones knows it by the element data's epoch.
+  void sync_rest_shapes(const StateType& s) { plastic_.sync(body_, s.plastic, threads()); }
   /// After a cut: its enriched elements stop flowing, and everything derived from the dof map
   /// is rebuilt.
   void cut_applied() {
     rebuild();
     if constexpr (enriched) cut_report_.plastic_frozen += plastic_.on_cut(body_.enrichment(), current_.plastic);
-    dynamics_.invalidate();
   }
   /// X-FEM: the enriched dofs' share of a body force (empty without a cut).
   typename LoadsType::EnrichedBodyForce enriched_body_force() const {

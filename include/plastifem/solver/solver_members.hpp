@@ -244,7 +244,6 @@ void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) 
   system_.set_settings(body_, settings_);
   system_.set_threads(threads());
   loads_.build(mesh(), material().density, settings_.mass, num_dofs(), enriched_body_force());
-  dynamics_.invalidate();
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -315,7 +314,6 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::solve_static(int load_steps) {
   const Solving solving(solving_);
   auto p = parts();
   work_.assign(current_);
-  dynamics_.invalidate();  // the system's K is statics' from here
   PlasticReport flow;
   StepReport r;
   try {

@@ -17,8 +17,9 @@
 //              start), and in real-time mode the one before (linear extrapolation of the two,
 //              when both steps had the current dt: 7-13% fewer CG iterations);
 //   plastic    the plastic policy's per-element table (empty for NoPlasticity; plastic/table.hpp);
-//   serial     an identity: a derived quantity computed from this state (the real-time step's
-//              linearisation) is valid while the committed state carries the same serial.
+//   serial     an identity: a quantity derived from this state (the real-time step's
+//              linearisation) names the state by it, beside what else it was made of (the
+//              tangent's stamp, the rest shapes' epoch: solver/dynamics.hpp).
 #include <plastifem/assembly/block_matrix.hpp>
 #include <plastifem/assembly/mass.hpp>
 #include <plastifem/plastic/none.hpp>

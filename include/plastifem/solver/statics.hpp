@@ -91,7 +91,7 @@ class Statics {
     Scalar scale_ = 0;
 
     Scalar residual(const Vector& u, bool with_tangent) {
-      const bool ok = p.body.assemble(u, s.f_int_, with_tangent ? &p.system.K : nullptr, kind, p.threads);
+      const bool ok = p.system.assemble(p.body, u, s.f_int_, with_tangent, kind, p.threads);
       tangent_now = with_tangent;
       s.r_ = s.f_int_ - s.f_ext_;
       scale_ = std::max(p.system.free_norm(s.f_ext_), p.system.free_norm(s.f_int_));

@@ -8,6 +8,11 @@
 // Held dofs: their rows and columns of A become identity and their right-hand side zero, so a
 // Newton increment is zero there (u already holds the prescribed value; an uncoupled row stays
 // at zero, carrying no mass and no stiffness).
+//
+// Every write of the tangent K goes through assemble(), which gives K a new stamp
+// (tangent_stamp()); a rebuild does too. What is derived from a K (the real-time step's
+// linearisation, solver/dynamics.hpp) records the stamp and is stale when it differs: a static
+// solve, an accurate step or a cut that wrote K in between is seen without being told.
 #include <plastifem/assembly/discretization.hpp>
 #include <plastifem/core/log.hpp>
 #include <plastifem/solver/boundary.hpp>
@@ -84,6 +89,8 @@ class System {
     linear_.set_coupled_rows(groups);
     static_linear_.set_coupled_rows(std::move(groups));
     K_constant_valid_ = false;
+    Kd_current_ = false;
+    ++tangent_stamp_;
     coefficients_ = {0, 0, 0};
     build_mass(body, s.mass);
     set_constrained(body, constrained, also_held);
@@ -139,16 +146,7 @@ class System {
   /// the CG's products split A: assembly/block_matrix.hpp's for_value_ranges says why), then
   /// the held rows and columns become identity.
   void form(Scalar cm, Scalar cd, int threads) {
-    Scalar* a = A.values();
-    const Scalar* m = M.values();
-    const Scalar* k = K.values();
-    const Scalar* kd = cd != 0 ? Kd.values() : nullptr;
-    A.for_value_ranges(threads, [&](Index v0, Index v1) {
-      if (kd)
-        for (Index i = v0; i < v1; ++i) a[i] = cm * m[i] + k[i] + cd * kd[i];
-      else
-        for (Index i = v0; i < v1; ++i) a[i] = cm * m[i] + k[i];
-    });
+    A.set_combination(cm, M, K, cd, cd != 0 ? &Kd : nullptr, threads);
     blocks_.apply(A);
   }
   /// A = M with held rows as identity (the initial acceleration solve).
@@ -171,23 +169,42 @@ class System {
     coefficients_ = c;
     return same;
   }
-  void forget_coefficients() { coefficients_ = {0, 0, 0}; }
 
-  /// K of a constant-tangent model, assembled once per rest-shape epoch.
-  bool constant_tangent_current(std::uint64_t epoch) const { return K_constant_valid_ && K_epoch_ == epoch; }
+  /// K of a constant-tangent model, assembled once per rest-shape epoch: current while no
+  /// other assembly (a static solve's) has written K since.
+  bool constant_tangent_current(std::uint64_t epoch) const {
+    return K_constant_valid_ && K_epoch_ == epoch && K_constant_stamp_ == tangent_stamp_;
+  }
   void set_constant_tangent_current(std::uint64_t epoch) {
     K_constant_valid_ = true;
     K_epoch_ = epoch;
+    K_constant_stamp_ = tangent_stamp_;
   }
-  void invalidate_constant_tangent() { K_constant_valid_ = false; }
+
+  /// f = f_int(u) of the body, and its tangent of the given kind into K when asked. false if
+  /// some element cannot be evaluated at u.
+  bool assemble(const Body& body, const Vector& u, Vector& f, bool with_tangent, TangentKind kind, int threads) {
+    if (!with_tangent) return body.assemble(u, f, nullptr, kind, threads);
+    ++tangent_stamp_;
+    coefficients_ = {0, 0, 0};  // A no longer holds cm M + K + cd Kd of this K
+    return body.assemble(u, f, &K, kind, threads);
+  }
+  /// Names what K holds: it changes with every assemble() of a tangent and every rebuild, never
+  /// returns to an earlier value, and is never 0.
+  std::uint64_t tangent_stamp() const { return tangent_stamp_; }
 
   /// Kd = the projected tangent K_proj(u) of the body at u (Rayleigh damping's stiffness),
-  /// assembled into a matrix of the current pattern.
+  /// assembled into a matrix of the current pattern. A constant tangent's (`constant`) is K0 of
+  /// the current rest shapes at every u: assembled once per rest-shape epoch and dof map.
   /// false if some element cannot be evaluated at u (Kd is then incomplete).
-  bool assemble_damping_stiffness(const Body& body, const Vector& u, int threads) {
+  bool damping_stiffness_at(const Body& body, const Vector& u, bool constant, int threads) {
+    const auto epoch = body.data().epoch();
+    if (constant && Kd_current_ && Kd_epoch_ == epoch) return true;
     if (Kd.num_values() != K.num_values()) Kd = body.assembler().zero_matrix();
     damping_force_.resize(u.size());
-    return body.assemble(u, damping_force_, &Kd, TangentKind::Projected, threads);
+    Kd_current_ = body.assemble(u, damping_force_, &Kd, TangentKind::Projected, threads);
+    Kd_epoch_ = epoch;
+    return Kd_current_;
   }
 
   /// The round-off level of a force evaluation on this mesh, Newton's absolute floor (ten times
@@ -258,12 +275,16 @@ class System {
   std::vector<ElementScalarMatrix<E>> element_masses_;  ///< build_mass's, of element_mass_kind_
   MassKind element_mass_kind_ = MassKind::Consistent;
   std::vector<char> held_, constrained_;
-  Vector damping_force_;  ///< assemble_damping_stiffness's force, unused
+  Vector damping_force_;  ///< damping_stiffness_at's force, unused
   std::vector<Index> prescribed_dofs_;
   ConstrainedBlocks blocks_;
   std::array<Scalar, 3> coefficients_{0, 0, 0};
   bool K_constant_valid_ = false;
   std::uint64_t K_epoch_ = 0;
+  std::uint64_t tangent_stamp_ = 1;  ///< tangent_stamp()
+  std::uint64_t K_constant_stamp_ = 0;  ///< the stamp of the constant tangent's K
+  bool Kd_current_ = false;          ///< Kd is the damping stiffness of rest-shape epoch Kd_epoch_
+  std::uint64_t Kd_epoch_ = 0;
   Index roundoff_dofs_ = -1;
   Scalar roundoff_ = 0;
 };
