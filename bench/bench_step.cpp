@@ -27,6 +27,8 @@
 //              (corotational: the exact tangent, the default; corotational-warped: R K0 R^T)
 //              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
 //              [--cg-cap N] (real-time rows also with CG capped at N iterations; default 5, 0: none)
+//              [--preconditioner jacobi|block] (CG's: Jacobi, the default, or 3 x 3 node blocks; the
+//               solver column then says BJ-CG)
 //              [--after T] (T seconds of the scene first, not timed: the 100 measured steps then
 //               run from t = T, e.g. --after 3 on a bar that has sagged to 20% strain; the tip
 //               column is then at t = T + 1 s)
@@ -116,6 +118,8 @@ double heap_mb() {
 
 /// Seconds of each scene run before the measured steps (--after).
 Scalar after_seconds = 0;
+/// CG's preconditioner (--preconditioner).
+CgPreconditioner preconditioner = CgPreconditioner::Jacobi;
 
 /// cg_cap > 0: real-time mode with CG stopped after cg_cap iterations (or at 1e-6, if sooner).
 /// P: a plastic policy, with tau = 10^4, nu = 0.4, kappa = 0.2 and the physical stress, which
@@ -129,6 +133,7 @@ Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int 
   st.newton.exact_tangent = exact_tangent;
   st.linear = {kind, 1e-6, cg_cap > 0 ? cg_cap : 1000};  // CG to 1e-6 relative, warm-started (SCENES / issue targets)
   st.linear.accept_capped = cg_cap > 0;                   // a fixed-cost step: the cap is meant
+  st.linear.preconditioner = preconditioner;
   st.newmark.mode = mode;
   st.threads = threads;
 #ifdef _OPENMP
@@ -159,7 +164,10 @@ Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int 
   std::string model = exact_tangent ? Model::name : fmt::format("{} (warped)", Model::name);
   if constexpr (P::active) model += P::per_vertex_rotation ? "+VB" : "+CC";
   return {scene.name, E::name, model,
-          kind == LinearSolverKind::Direct ? std::string(direct_solver_name(DirectSolver::Auto)) : cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : "CG-1e-6", mode == NewmarkMode::Accurate ? "accurate" : "realtime",
+          kind == LinearSolverKind::Direct ? std::string(direct_solver_name(DirectSolver::Auto))
+          : fmt::format("{}{}", preconditioner == CgPreconditioner::BlockJacobi ? "BJ-" : "",
+                        cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : std::string("CG-1e-6")),
+          mode == NewmarkMode::Accurate ? "accurate" : "realtime",
           threads, s.num_dofs(), mesh.num_elements(), peak - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
 }
 
@@ -184,6 +192,11 @@ int main(int argc, char** argv) try {
     else if (i + 1 < argc && a == "--after") {
       after_seconds = std::stod(argv[++i]);
       if (!(after_seconds >= 0 && after_seconds <= 1e3)) fail<InvalidArgument>("--after {}: give seconds in [0, 1000]", after_seconds);
+    }
+    else if (i + 1 < argc && a == "--preconditioner") {
+      const std::string pc = argv[++i];
+      if (pc != "jacobi" && pc != "block") fail<InvalidArgument>("--preconditioner {}: give jacobi or block", pc);
+      preconditioner = pc == "block" ? CgPreconditioner::BlockJacobi : CgPreconditioner::Jacobi;
     }
     else if (i + 1 < argc && a == "--elements") elements = split(argv[++i]);
     else if (i + 1 < argc && a == "--models") models = split(argv[++i]);
