@@ -173,7 +173,7 @@ class Dynamics {
     if constexpr (constant_tangent) {
       const auto epoch = p.body.data().epoch();
       if (!p.system.constant_tangent_current(epoch)) {
-        p.system.assemble(p.body, u, f, true, kind, p.threads);
+        if (!p.system.assemble(p.body, u, f, true, kind, p.threads)) return false;  // not recorded: assembled again
         p.system.set_constant_tangent_current(epoch);
       }
       if (p.body.has_rest_displacement()) {  // plastic flow moved the rest shapes: f = K (u - u_rest)

@@ -88,7 +88,6 @@ class System {
     }
     linear_.set_coupled_rows(groups);
     static_linear_.set_coupled_rows(std::move(groups));
-    K_constant_valid_ = false;
     Kd_current_ = false;
     ++tangent_stamp_;
     coefficients_ = {0, 0, 0};
@@ -173,10 +172,9 @@ class System {
   /// K of a constant-tangent model, assembled once per rest-shape epoch: current while no
   /// other assembly (a static solve's) has written K since.
   bool constant_tangent_current(std::uint64_t epoch) const {
-    return K_constant_valid_ && K_epoch_ == epoch && K_constant_stamp_ == tangent_stamp_;
+    return K_constant_stamp_ == tangent_stamp_ && K_epoch_ == epoch;
   }
   void set_constant_tangent_current(std::uint64_t epoch) {
-    K_constant_valid_ = true;
     K_epoch_ = epoch;
     K_constant_stamp_ = tangent_stamp_;
   }
@@ -279,10 +277,9 @@ class System {
   std::vector<Index> prescribed_dofs_;
   ConstrainedBlocks blocks_;
   std::array<Scalar, 3> coefficients_{0, 0, 0};
-  bool K_constant_valid_ = false;
   std::uint64_t K_epoch_ = 0;
   std::uint64_t tangent_stamp_ = 1;  ///< tangent_stamp()
-  std::uint64_t K_constant_stamp_ = 0;  ///< the stamp of the constant tangent's K
+  std::uint64_t K_constant_stamp_ = 0;  ///< the stamp of the constant tangent's K (0: none yet)
   bool Kd_current_ = false;          ///< Kd is the damping stiffness of rest-shape epoch Kd_epoch_
   std::uint64_t Kd_epoch_ = 0;
   Index roundoff_dofs_ = -1;
