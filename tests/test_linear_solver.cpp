@@ -3,7 +3,7 @@
 // reject singular and indefinite matrices with a SolverError, and a back-end the build lacks is
 // refused with an InvalidArgument that says how to get it. CG's preconditioners: X-FEM's
 // coupled rows, and the node blocks (CgPreconditioner::BlockJacobi) on their own and in every
-// mode of a solver.
+// mode of a solver; the vector passes by chunks, the same bits on any number of threads.
 #include "catch.hpp"
 
 #include <plastifem/plastifem.hpp>
@@ -273,22 +273,116 @@ TEST_CASE("CG with node blocks: the same solution, iterations a rotation of the 
     for (Index i = 0; i < mesh.num_nodes(); ++i) x_back.segment<3>(3 * i) = Q.transpose() * xt.segment<3>(3 * i);
     CHECK((x_back - x).norm() <= 2e-5 * x.norm());
   }
-  SECTION("a diagonal block that is not positive definite: a SolverError that says so") {
-    BlockSymmetricMatrix A = combine(m, c0, 1.0, fixed);
-    const auto& p = A.pattern();
-    const Index I = mesh.num_nodes() - 1;  // a free node
-    Scalar* B = A.values() + 9 * static_cast<size_t>(p.row_start[I + 1] - 1);
-    B[1] = B[3] = 2 * std::sqrt(B[0] * B[4]);  // a 2 x 2 minor B00 B11 - B01^2 < 0: indefinite, diagonal positive
-    LinearSolverSettings st{LinearSolverKind::ConjugateGradient, 1e-10, 1000};
-    st.preconditioner = CgPreconditioner::BlockJacobi;
-    LinearSolver s(st);
-    Vector x = Vector::Zero(A.rows());
-    try {
-      s.solve(A, Vector::Ones(A.rows()), x);
-      FAIL("no SolverError");
-    } catch (const SolverError& e) {
-      CHECK(std::string(e.what()).find("diagonal block of block row " + std::to_string(I)) != std::string::npos);
+  SECTION("a diagonal block that is not positive definite: a SolverError that names the first") {
+    // Sylvester's criterion: each leading minor of the block is tried. Two blocks broken, the
+    // later one in the first minor that fails; the message names the first in row order.
+    const Index I = mesh.num_nodes() - 1, J = mesh.num_nodes() / 2;  // free nodes
+    for (int minor = 2; minor <= 3; ++minor) {
+      CAPTURE(minor);
+      BlockSymmetricMatrix A = combine(m, c0, 1.0, fixed);
+      const auto& p = A.pattern();
+      auto block = [&](Index row) { return A.values() + 9 * static_cast<size_t>(p.row_start[row + 1] - 1); };
+      Scalar* B = block(I);
+      B[1] = B[3] = 2 * std::sqrt(B[0] * B[4]);  // B00 B11 - B01^2 < 0, the diagonal positive
+      Scalar* C = block(J);
+      if (minor == 2) C[1] = C[3] = 2 * std::sqrt(C[0] * C[4]);
+      else {  // D [1 k k; k 1 -k; k -k 1], k = 3/4: minors 1 and 1 - k^2 positive, det (1 + k)^2 (1 - 2k) < 0
+        const Scalar D = C[0], k = 0.75;
+        const Scalar det_only[9] = {D, k * D, k * D, k * D, D, -k * D, k * D, -k * D, D};
+        std::copy(det_only, det_only + 9, C);
+      }
+      LinearSolverSettings st{LinearSolverKind::ConjugateGradient, 1e-10, 1000};
+      st.preconditioner = CgPreconditioner::BlockJacobi;
+      LinearSolver s(st);
+      Vector x = Vector::Zero(A.rows());
+      try {
+        s.solve(A, Vector::Ones(A.rows()), x);
+        FAIL("no SolverError");
+      } catch (const SolverError& e) {
+        CHECK(std::string(e.what()).find("diagonal block of block row " + std::to_string(J) + " ") !=
+              std::string::npos);
+      }
     }
+  }
+}
+
+TEST_CASE("CG's vector passes by chunks: any thread count gives the same bits, appended zeros change nothing",
+          "[linear][cg]") {
+  // core/vector_ops.hpp: each chunk of vector_chunk dofs is summed as dot() sums, the chunks'
+  // sums added in chunk order, whichever thread ran them. 11 chunks and a partial one: above the
+  // 4 chunks per thread from which the passes run on threads.
+  const Index n = 11 * vector_chunk + 3 * 41;
+  const Vector p0 = Vector::Random(n), q0 = Vector::Random(n), d0 = Vector::Random(n).cwiseAbs(),
+               x0 = Vector::Random(n), r0 = Vector::Random(n);
+  std::vector<Scalar> blocks(3 * static_cast<size_t>(n));  // a symmetric positive definite 3 x 3 per node
+  for (Index I = 0; I < n / 3; ++I) {
+    const Mat3 R = Mat3::Random();
+    Eigen::Map<Eigen::Matrix<Scalar, 3, 3, Eigen::RowMajor>>(blocks.data() + 9 * I) = R * R.transpose() + Mat3::Identity();
+  }
+  const Scalar alpha = 0.37, beta = 0.81;
+  struct Result {
+    Vector x, r, z, p;
+    Scalar pq = 0, rz = 0, rr = 0, rz_blocks = 0, rr_blocks = 0;
+    Vector x_blocks, r_blocks, z_blocks;
+  };
+  auto run = [&](int threads, Index zeros) {
+    const Index m = n + zeros;
+    auto grow = [&](const Vector& v) {
+      Vector w = Vector::Zero(m);
+      w.head(n) = v;
+      return w;
+    };
+    std::vector<Scalar> partial(2 * static_cast<size_t>(num_vector_chunks(m)));
+    std::vector<Scalar> grown_blocks(blocks);
+    grown_blocks.resize(3 * static_cast<size_t>(m), 0.0);
+    Result o;
+    o.x = o.x_blocks = grow(x0), o.r = o.r_blocks = grow(r0), o.p = grow(p0);
+    o.z.resize(m), o.z_blocks.resize(m);
+    const Vector q = grow(q0), d = grow(d0);
+    o.pq = dot(o.p.data(), q.data(), m, threads, partial.data());
+    cg_update(alpha, o.p.data(), q.data(), d.data(), o.x.data(), o.r.data(), o.z.data(), m, o.rz, o.rr, threads,
+              partial.data());
+    cg_update_node_blocks(alpha, o.p.data(), q.data(), grown_blocks.data(), o.x_blocks.data(), o.r_blocks.data(),
+                          o.z_blocks.data(), m, o.rz_blocks, o.rr_blocks, threads, partial.data());
+    update_direction(o.z.data(), beta, o.p.data(), m, threads);
+    return o;
+  };
+  const Result one = run(1, 0);
+  // Against the formulas, to round-off: sums of ~3e4 terms of O(1), each within its terms' sum
+  // times n eps ~ 1e-11; the elementwise values to a few eps.
+  const Vector r = r0 - alpha * q0, z = d0.cwiseProduct(r);
+  Vector zb(n);
+  for (Index I = 0; I < n / 3; ++I)
+    zb.segment<3>(3 * I) = Eigen::Map<const Eigen::Matrix<Scalar, 3, 3, Eigen::RowMajor>>(blocks.data() + 9 * I) *
+                           r.segment<3>(3 * I);
+  CHECK(std::abs(one.pq - p0.dot(q0)) <= 1e-11 * p0.cwiseAbs().dot(q0.cwiseAbs()));
+  CHECK((one.x - (x0 + alpha * p0)).norm() <= 1e-15 * x0.norm());
+  CHECK((one.r - r).norm() <= 1e-15 * r.norm());
+  CHECK((one.z - z).norm() <= 1e-15 * z.norm());
+  CHECK(std::abs(one.rz - r.dot(z)) <= 1e-11 * r.dot(z));
+  CHECK(std::abs(one.rr - r.squaredNorm()) <= 1e-11 * r.squaredNorm());
+  // The node-block pass sums in row order, the Jacobi pass in lanes (and a compiler may fuse
+  // its multiply-adds): equal to the formulas, not to each other's bits.
+  CHECK((one.x_blocks - (x0 + alpha * p0)).norm() <= 1e-15 * x0.norm());
+  CHECK((one.r_blocks - r).norm() <= 1e-15 * r.norm());
+  CHECK((one.z_blocks - zb).norm() <= 1e-14 * zb.norm());
+  CHECK(std::abs(one.rz_blocks - r.dot(zb)) <= 1e-11 * r.dot(zb));
+  CHECK(std::abs(one.rr_blocks - r.squaredNorm()) <= 1e-11 * r.squaredNorm());
+  CHECK((one.p - (z + beta * p0)).norm() <= 1e-15 * one.p.norm());
+  // Bit for bit: 2 and 3 threads, and zeros appended (a partial chunk filled, and chunks of zeros;
+  // whole nodes, as the dof map appends them).
+  for (const auto& [threads, zeros] : {std::pair{2, Index{0}}, std::pair{3, Index{0}}, std::pair{2, Index{5001}}}) {
+    CAPTURE(threads, zeros);
+    const Result o = run(threads, zeros);
+    CHECK(o.pq == one.pq);
+    CHECK(o.rz == one.rz);
+    CHECK(o.rr == one.rr);
+    CHECK(o.rz_blocks == one.rz_blocks);
+    CHECK(o.rr_blocks == one.rr_blocks);
+    CHECK(o.x.head(n) == one.x);
+    CHECK(o.z.head(n) == one.z);
+    CHECK(o.z_blocks.head(n) == one.z_blocks);
+    CHECK(o.p.head(n) == one.p);
   }
 }
 

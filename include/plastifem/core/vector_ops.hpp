@@ -10,6 +10,12 @@
 // (two independent packet accumulators).
 #include <plastifem/core/types.hpp>
 
+#include <algorithm>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace plastifem {
 
 inline Scalar dot(const Scalar* x, const Scalar* y, Index n) {
@@ -79,6 +85,78 @@ inline void cg_update(Scalar alpha, const Scalar* p, const Scalar* q, const Scal
   };
   rz = reduce(rz0, rz1);
   rr = reduce(rr0, rr1);
+}
+
+/// The vector passes of CG in fixed chunks of `vector_chunk` dofs: each chunk's sums are formed
+/// as dot() forms them, then added in chunk order. Which thread ran a chunk changes nothing, so
+/// any thread count gives the same bits, and zeros appended to the vectors add exact zeros (to
+/// the last chunk's lanes, or as chunks of their own). 3072 dofs: a multiple of 3 (a node's
+/// three rows never straddle two chunks) and of 2 P for any packet up to AVX-512's (P = 8).
+inline constexpr Index vector_chunk = 3072;
+inline Index num_vector_chunks(Index n) { return (n + vector_chunk - 1) / vector_chunk; }
+
+/// pass(c, i0, i1) for each chunk c = [i0, i1) of [0, n), on up to `threads` threads (static
+/// schedule). Below 4 chunks per thread a pass is serial: the fork costs more than it saves.
+template <class Pass>
+void for_each_vector_chunk(Index n, int threads, Pass&& pass) {
+  const Index chunks = num_vector_chunks(n);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) num_threads(threads) if (threads > 1 && chunks >= 4 * threads)
+#else
+  (void)threads;
+#endif
+  for (Index c = 0; c < chunks; ++c) pass(c, c * vector_chunk, std::min(n, (c + 1) * vector_chunk));
+}
+
+/// x . y by chunks (`partial`: room for num_vector_chunks(n) values).
+inline Scalar dot(const Scalar* x, const Scalar* y, Index n, int threads, Scalar* partial) {
+  for_each_vector_chunk(n, threads, [&](Index c, Index i0, Index i1) { partial[c] = dot(x + i0, y + i0, i1 - i0); });
+  Scalar s = 0;
+  for (Index c = 0; c < num_vector_chunks(n); ++c) s += partial[c];
+  return s;
+}
+
+/// cg_update by chunks (`partial`: room for 2 num_vector_chunks(n) values).
+inline void cg_update(Scalar alpha, const Scalar* p, const Scalar* q, const Scalar* d, Scalar* x, Scalar* r, Scalar* z,
+                      Index n, Scalar& rz, Scalar& rr, int threads, Scalar* partial) {
+  for_each_vector_chunk(n, threads, [&](Index c, Index i0, Index i1) {
+    cg_update(alpha, p + i0, q + i0, d + i0, x + i0, r + i0, z + i0, i1 - i0, partial[2 * c], partial[2 * c + 1]);
+  });
+  rz = rr = 0;
+  for (Index c = 0; c < num_vector_chunks(n); ++c) rz += partial[2 * c], rr += partial[2 * c + 1];
+}
+
+/// cg_update with z = B r, B a symmetric 3 x 3 block per node (`blocks`: 9 values per node, n a
+/// multiple of 3): x += alpha p, r -= alpha q, z = B r, and r.z and r.r, in one pass by chunks
+/// (`partial` as for cg_update). Within a chunk the sums run in row order.
+inline void cg_update_node_blocks(Scalar alpha, const Scalar* p, const Scalar* q, const Scalar* blocks, Scalar* x,
+                                  Scalar* r, Scalar* z, Index n, Scalar& rz, Scalar& rr, int threads,
+                                  Scalar* partial) {
+  for_each_vector_chunk(n, threads, [&](Index c, Index i0, Index i1) {
+    Scalar s_rz = 0, s_rr = 0;
+    for (Index i = i0; i < i1; i += 3) {
+      const Scalar* B = blocks + 3 * i;  // node i / 3's, row-major
+      x[i] += alpha * p[i], x[i + 1] += alpha * p[i + 1], x[i + 2] += alpha * p[i + 2];
+      const Scalar r0 = r[i] - alpha * q[i], r1 = r[i + 1] - alpha * q[i + 1], r2 = r[i + 2] - alpha * q[i + 2];
+      const Scalar z0 = B[0] * r0 + B[1] * r1 + B[2] * r2;
+      const Scalar z1 = B[3] * r0 + B[4] * r1 + B[5] * r2;
+      const Scalar z2 = B[6] * r0 + B[7] * r1 + B[8] * r2;
+      r[i] = r0, r[i + 1] = r1, r[i + 2] = r2;
+      z[i] = z0, z[i + 1] = z1, z[i + 2] = z2;
+      s_rz += r0 * z0 + r1 * z1 + r2 * z2;
+      s_rr += r0 * r0 + r1 * r1 + r2 * r2;
+    }
+    partial[2 * c] = s_rz, partial[2 * c + 1] = s_rr;
+  });
+  rz = rr = 0;
+  for (Index c = 0; c < num_vector_chunks(n); ++c) rz += partial[2 * c], rr += partial[2 * c + 1];
+}
+
+/// p = z + beta p (CG's new direction), by chunks on up to `threads` threads.
+inline void update_direction(const Scalar* z, Scalar beta, Scalar* p, Index n, int threads) {
+  for_each_vector_chunk(n, threads, [&](Index, Index i0, Index i1) {
+    for (Index i = i0; i < i1; ++i) p[i] = z[i] + beta * p[i];
+  });
 }
 
 template <class A, class B>

@@ -233,18 +233,41 @@ class BasicLinearSolver {
     return true;
   }
 
-  /// The inverses of A's 3 x 3 diagonal blocks (CgPreconditioner::BlockJacobi), each a node's;
-  /// throws SolverError where one is not positive definite (then neither is A).
+  /// S = B^-1 for a symmetric 3 x 3 block B (row-major; its upper triangle is read), by the
+  /// adjugate: B^-1 = adj(B) / det B. False where B is not positive definite by Sylvester's
+  /// criterion (its leading minors B00, B00 B11 - B01^2 and det B not all positive and finite).
+  static bool invert_spd3(const Scalar* B, Scalar* S) {
+    const Scalar a = B[0], b = B[1], c = B[2], d = B[4], e = B[5], f = B[8];
+    const Scalar c00 = d * f - e * e, c01 = c * e - b * f, c02 = b * e - c * d;  // cofactors
+    const Scalar det = a * c00 + b * c01 + c * c02;
+    if (!(a > 0) || !(a * d - b * b > 0) || !(det > 0) || !std::isfinite(det)) return false;
+    const Scalar s = 1 / det;
+    S[0] = s * c00, S[1] = S[3] = s * c01, S[2] = S[6] = s * c02;
+    S[4] = s * (a * f - c * c), S[5] = S[7] = s * (b * c - a * e), S[8] = s * (a * d - b * b);
+    return true;
+  }
+
+  /// The inverses of A's 3 x 3 diagonal blocks (CgPreconditioner::BlockJacobi), each a node's,
+  /// in chunks on the solver's threads; throws SolverError naming the first block row whose block
+  /// is not positive definite (then neither is A).
   void factorise_node_blocks(const BlockSymmetricMatrix& A) {
     const BlockPattern& p = A.pattern();
-    node_inverse_.resize(9 * static_cast<size_t>(p.num_block_rows));
-    for (Index I = 0; I < p.num_block_rows; ++I) {
-      const Scalar* B = A.values() + 9 * static_cast<size_t>(p.row_start[I + 1] - 1);  // the diagonal block: last
-      Scalar* S = node_inverse_.data() + 9 * static_cast<size_t>(I);
-      std::copy(B, B + 9, S);
-      if (!invert_spd(S, 3))
-        fail<SolverError>("CG: the diagonal block of block row {} is not positive definite (indefinite system)", I);
-    }
+    const Index rows = p.num_block_rows;
+    node_inverse_.resize(9 * static_cast<size_t>(rows));
+    constexpr Index chunk = vector_chunk / 3;
+    const Index chunks = (rows + chunk - 1) / chunk;
+    bad_row_.assign(static_cast<size_t>(chunks), -1);
+    for_each_vector_chunk(3 * rows, threads_, [&](Index c, Index i0, Index i1) {
+      for (Index I = i0 / 3; I < i1 / 3; ++I) {
+        const Scalar* B = A.values() + 9 * static_cast<size_t>(p.row_start[I + 1] - 1);  // the diagonal block: last
+        if (!invert_spd3(B, node_inverse_.data() + 9 * static_cast<size_t>(I))) {
+          bad_row_[static_cast<size_t>(c)] = I;
+          return;
+        }
+      }
+    });
+    for (Index I : bad_row_)
+      if (I >= 0) fail<SolverError>("CG: the diagonal block of block row {} is not positive definite (indefinite system)", I);
   }
   /// z = P r with the node blocks' inverses; returns r.z, summed in row order (so zeros appended
   /// to the vectors change nothing).
@@ -316,6 +339,8 @@ class BasicLinearSolver {
   bool analysed_ = false, factorised_ = false;
   int threads_ = 1;
   Vector r_, z_, p_, q_, inv_diag_;
+  std::vector<Index> bad_row_;  ///< factorise_node_blocks' first failed row per chunk
+  std::vector<Scalar> partial_;  ///< the chunks' sums of the CG vector passes (core/vector_ops.hpp)
   std::vector<Scalar> node_inverse_;  ///< factorise_node_blocks, 9 per block row
   std::vector<std::vector<Index>> groups_;  ///< set_coupled_rows
   std::vector<Index> group_offset_;
@@ -386,6 +411,7 @@ LinearSolveReport BasicLinearSolver<Unused>::solve_cg(const BlockSymmetricMatrix
   const Index n = static_cast<Index>(b.size());
   if (r_.size() != n) {
     r_.resize(n), z_.resize(n), p_.resize(n), q_.resize(n), inv_diag_.resize(n);
+    partial_.resize(2 * static_cast<size_t>(num_vector_chunks(n)));
   }
   A.diagonal_into(inv_diag_);
   for (Index i = 0; i < n; ++i) {
@@ -416,14 +442,18 @@ LinearSolveReport BasicLinearSolver<Unused>::solve_cg(const BlockSymmetricMatrix
   int k = 0;
   while (rnorm > target && k < settings_.max_iterations) {
     A.multiply(p_, q_, threads_);
-    const Scalar pq = dot(p_, q_);
+    const Scalar pq = dot(p_.data(), q_.data(), n, threads_, partial_.data());
     if (!(pq > 0)) fail<SolverError>("CG breakdown (p.Ap = {:.3g}): the system is not positive definite", pq);
     const Scalar alpha = rz / pq;
     Scalar rz_new, rr;
-    cg_update(alpha, p_.data(), q_.data(), inv_diag_.data(), x.data(), r_.data(), z_.data(), n, rz_new, rr);
-    if (node_blocks) rz_new = apply_node_blocks(r_, z_);  // the Jacobi z and r.z replaced
+    if (node_blocks)
+      cg_update_node_blocks(alpha, p_.data(), q_.data(), node_inverse_.data(), x.data(), r_.data(), z_.data(), n,
+                            rz_new, rr, threads_, partial_.data());
+    else
+      cg_update(alpha, p_.data(), q_.data(), inv_diag_.data(), x.data(), r_.data(), z_.data(), n, rz_new, rr,
+                threads_, partial_.data());
     if (!groups_.empty()) rz_new += apply_groups(r_, z_);
-    p_ = z_ + (rz_new / rz) * p_;
+    update_direction(z_.data(), rz_new / rz, p_.data(), n, threads_);
     rz = rz_new;
     rnorm = std::sqrt(rr);
     ++k;
