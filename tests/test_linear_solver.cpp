@@ -274,12 +274,16 @@ TEST_CASE("CG with node blocks: the same solution, iterations a rotation of the 
     CHECK((x_back - x).norm() <= 2e-5 * x.norm());
   }
   SECTION("a diagonal block that is not positive definite: a SolverError that names the first") {
-    // Sylvester's criterion: each leading minor of the block is tried. Two blocks broken, the
-    // later one in the first minor that fails; the message names the first in row order.
-    const Index I = mesh.num_nodes() - 1, J = mesh.num_nodes() / 2;  // free nodes
+    // Sylvester's criterion on each node's block (its first minor, the diagonal, is CG's own
+    // check before it). Two blocks broken, the later in row order by B00 B11 - B01^2 < 0, the
+    // first by that minor or by det alone; the message names the first. 9,604 nodes: 10 chunks
+    // of the factorisation, the two blocks in chunks 1 and 9, on different threads of 2.
+    const auto big_mesh = bar_mesh<Hex8>(48, 13, 13);
+    const Matrices big = assemble_linear(big_mesh);
+    const Index I = big_mesh.num_nodes() - 1, J = 1500;
     for (int minor = 2; minor <= 3; ++minor) {
       CAPTURE(minor);
-      BlockSymmetricMatrix A = combine(m, c0, 1.0, fixed);
+      BlockSymmetricMatrix A = combine(big, c0, 1.0, big_mesh.node_set("xmin"));
       const auto& p = A.pattern();
       auto block = [&](Index row) { return A.values() + 9 * static_cast<size_t>(p.row_start[row + 1] - 1); };
       Scalar* B = block(I);
@@ -294,6 +298,7 @@ TEST_CASE("CG with node blocks: the same solution, iterations a rotation of the 
       LinearSolverSettings st{LinearSolverKind::ConjugateGradient, 1e-10, 1000};
       st.preconditioner = CgPreconditioner::BlockJacobi;
       LinearSolver s(st);
+      s.set_threads(2);
       Vector x = Vector::Zero(A.rows());
       try {
         s.solve(A, Vector::Ones(A.rows()), x);
@@ -369,8 +374,8 @@ TEST_CASE("CG's vector passes by chunks: any thread count gives the same bits, a
   CHECK(std::abs(one.rz_blocks - r.dot(zb)) <= 1e-11 * r.dot(zb));
   CHECK(std::abs(one.rr_blocks - r.squaredNorm()) <= 1e-11 * r.squaredNorm());
   CHECK((one.p - (z + beta * p0)).norm() <= 1e-15 * one.p.norm());
-  // Bit for bit: 2 and 3 threads, and zeros appended (a partial chunk filled, and chunks of zeros;
-  // whole nodes, as the dof map appends them).
+  // Bit for bit: 2 and 3 threads, and zeros appended (the partial chunk filled and one chunk
+  // more; whole nodes, as the dof map appends them).
   for (const auto& [threads, zeros] : {std::pair{2, Index{0}}, std::pair{3, Index{0}}, std::pair{2, Index{5001}}}) {
     CAPTURE(threads, zeros);
     const Result o = run(threads, zeros);
@@ -380,7 +385,10 @@ TEST_CASE("CG's vector passes by chunks: any thread count gives the same bits, a
     CHECK(o.rz_blocks == one.rz_blocks);
     CHECK(o.rr_blocks == one.rr_blocks);
     CHECK(o.x.head(n) == one.x);
+    CHECK(o.r.head(n) == one.r);
     CHECK(o.z.head(n) == one.z);
+    CHECK(o.x_blocks.head(n) == one.x_blocks);
+    CHECK(o.r_blocks.head(n) == one.r_blocks);
     CHECK(o.z_blocks.head(n) == one.z_blocks);
     CHECK(o.p.head(n) == one.p);
   }

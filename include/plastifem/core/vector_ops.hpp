@@ -132,6 +132,7 @@ inline void cg_update(Scalar alpha, const Scalar* p, const Scalar* q, const Scal
 inline void cg_update_node_blocks(Scalar alpha, const Scalar* p, const Scalar* q, const Scalar* blocks, Scalar* x,
                                   Scalar* r, Scalar* z, Index n, Scalar& rz, Scalar& rr, int threads,
                                   Scalar* partial) {
+  eigen_assert(n % 3 == 0 && "cg_update_node_blocks: whole nodes of 3 dofs");
   for_each_vector_chunk(n, threads, [&](Index c, Index i0, Index i1) {
     Scalar s_rz = 0, s_rr = 0;
     for (Index i = i0; i < i1; i += 3) {

@@ -307,7 +307,8 @@ class BasicLinearSolver {
       group_valid_[g] = invert_spd(S, k);
     }
   }
-  /// z = P r on the groups' rows (the Jacobi z is there already); returns the change of r.z.
+  /// z = P r on the groups' rows (the Jacobi or node-block z is there already); returns the
+  /// change of r.z.
   Scalar apply_groups(const Vector& r, Vector& z) const {
     Scalar change = 0;
     for (size_t g = 0; g < groups_.size(); ++g) {
