@@ -41,10 +41,10 @@ enum class CgPreconditioner {
   /// together. Elasticity couples them within a node wherever an element is not aligned with
   /// the axes: on Gmsh's unstructured livers CG takes about a fifth fewer iterations, on the
   /// axis-aligned bars a few percent, and the iteration count no longer changes when the mesh
-  /// is turned. It costs one 3 x 3 inversion per node per solve and one more serial pass over
-  /// r and z per iteration, which so far eats most of the saving: a liver5 real-time step takes
-  /// 0.96-1.00 of Jacobi's time (docs/performance.md, "Large and irregular meshes"). Its
-  /// iterates are not Jacobi's; the solutions agree within what the CG tolerance allows.
+  /// is turned. It costs one 3 x 3 inversion per node per solve and 72 bytes of inverse per node
+  /// read in each iteration's update (fused into it): a liver5 step takes about 0.87-0.97 of
+  /// Jacobi's time, a liver4 step no less (docs/performance.md, "Large and irregular meshes").
+  /// Its iterates are not Jacobi's; the solutions agree within what the CG tolerance allows.
   BlockJacobi,
 };
 
@@ -254,9 +254,7 @@ class BasicLinearSolver {
     const BlockPattern& p = A.pattern();
     const Index rows = p.num_block_rows;
     node_inverse_.resize(9 * static_cast<size_t>(rows));
-    constexpr Index chunk = vector_chunk / 3;
-    const Index chunks = (rows + chunk - 1) / chunk;
-    bad_row_.assign(static_cast<size_t>(chunks), -1);
+    bad_row_.assign(static_cast<size_t>(num_vector_chunks(3 * rows)), -1);
     for_each_vector_chunk(3 * rows, threads_, [&](Index c, Index i0, Index i1) {
       for (Index I = i0 / 3; I < i1 / 3; ++I) {
         const Scalar* B = A.values() + 9 * static_cast<size_t>(p.row_start[I + 1] - 1);  // the diagonal block: last
