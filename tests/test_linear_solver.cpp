@@ -328,7 +328,7 @@ TEST_CASE("CG's vector passes by chunks: any thread count gives the same bits, a
   struct Result {
     Vector x, r, z, p;
     Scalar pq = 0, rz = 0, rr = 0, rz_blocks = 0, rr_blocks = 0;
-    Vector x_blocks, r_blocks, z_blocks;
+    Vector x_blocks, r_blocks, z_blocks, z_initial;
   };
   auto run = [&](int threads, Index zeros) {
     const Index m = n + zeros;
@@ -342,8 +342,9 @@ TEST_CASE("CG's vector passes by chunks: any thread count gives the same bits, a
     grown_blocks.resize(3 * static_cast<size_t>(m), 0.0);
     Result o;
     o.x = o.x_blocks = grow(x0), o.r = o.r_blocks = grow(r0), o.p = grow(p0);
-    o.z.resize(m), o.z_blocks.resize(m);
+    o.z.resize(m), o.z_blocks.resize(m), o.z_initial.resize(m);
     const Vector q = grow(q0), d = grow(d0);
+    apply_node_blocks(grown_blocks.data(), o.r.data(), o.z_initial.data(), m, threads);  // CG's initial z
     o.pq = dot(o.p.data(), q.data(), m, threads, partial.data());
     cg_update(alpha, o.p.data(), q.data(), d.data(), o.x.data(), o.r.data(), o.z.data(), m, o.rz, o.rr, threads,
               partial.data());
@@ -371,6 +372,11 @@ TEST_CASE("CG's vector passes by chunks: any thread count gives the same bits, a
   CHECK((one.x_blocks - (x0 + alpha * p0)).norm() <= 1e-15 * x0.norm());
   CHECK((one.r_blocks - r).norm() <= 1e-15 * r.norm());
   CHECK((one.z_blocks - zb).norm() <= 1e-14 * zb.norm());
+  Vector zb0(n);  // the initial pass, z = B r0
+  for (Index I = 0; I < n / 3; ++I)
+    zb0.segment<3>(3 * I) = Eigen::Map<const Eigen::Matrix<Scalar, 3, 3, Eigen::RowMajor>>(blocks.data() + 9 * I) *
+                            r0.segment<3>(3 * I);
+  CHECK((one.z_initial - zb0).norm() <= 1e-14 * zb0.norm());
   CHECK(std::abs(one.rz_blocks - r.dot(zb)) <= 1e-11 * r.dot(zb));
   CHECK(std::abs(one.rr_blocks - r.squaredNorm()) <= 1e-11 * r.squaredNorm());
   CHECK((one.p - (z + beta * p0)).norm() <= 1e-15 * one.p.norm());
@@ -390,6 +396,7 @@ TEST_CASE("CG's vector passes by chunks: any thread count gives the same bits, a
     CHECK(o.x_blocks.head(n) == one.x_blocks);
     CHECK(o.r_blocks.head(n) == one.r_blocks);
     CHECK(o.z_blocks.head(n) == one.z_blocks);
+    CHECK(o.z_initial.head(n) == one.z_initial);
     CHECK(o.p.head(n) == one.p);
   }
 }

@@ -126,6 +126,23 @@ inline void cg_update(Scalar alpha, const Scalar* p, const Scalar* q, const Scal
   for (Index c = 0; c < num_vector_chunks(n); ++c) rz += partial[2 * c], rr += partial[2 * c + 1];
 }
 
+/// z = B r at one node, B its symmetric 3 x 3 block (9 values, row-major): the node-block
+/// preconditioner's one product, shared by its initial pass and its fused update.
+inline void node_block_times(const Scalar* B, Scalar r0, Scalar r1, Scalar r2, Scalar* z) {
+  z[0] = B[0] * r0 + B[1] * r1 + B[2] * r2;
+  z[1] = B[3] * r0 + B[4] * r1 + B[5] * r2;
+  z[2] = B[6] * r0 + B[7] * r1 + B[8] * r2;
+}
+
+/// z = B r with a 3 x 3 block per node (`blocks`: 9 values per node, n a multiple of 3), by
+/// chunks on up to `threads` threads.
+inline void apply_node_blocks(const Scalar* blocks, const Scalar* r, Scalar* z, Index n, int threads) {
+  eigen_assert(n % 3 == 0 && "apply_node_blocks: whole nodes of 3 dofs");
+  for_each_vector_chunk(n, threads, [&](Index, Index i0, Index i1) {
+    for (Index i = i0; i < i1; i += 3) node_block_times(blocks + 3 * i, r[i], r[i + 1], r[i + 2], z + i);
+  });
+}
+
 /// cg_update with z = B r, B a symmetric 3 x 3 block per node (`blocks`: 9 values per node, n a
 /// multiple of 3): x += alpha p, r -= alpha q, z = B r, and r.z and r.r, in one pass by chunks
 /// (`partial` as for cg_update). Within a chunk the sums run in row order.
@@ -136,15 +153,13 @@ inline void cg_update_node_blocks(Scalar alpha, const Scalar* p, const Scalar* q
   for_each_vector_chunk(n, threads, [&](Index c, Index i0, Index i1) {
     Scalar s_rz = 0, s_rr = 0;
     for (Index i = i0; i < i1; i += 3) {
-      const Scalar* B = blocks + 3 * i;  // node i / 3's, row-major
       x[i] += alpha * p[i], x[i + 1] += alpha * p[i + 1], x[i + 2] += alpha * p[i + 2];
       const Scalar r0 = r[i] - alpha * q[i], r1 = r[i + 1] - alpha * q[i + 1], r2 = r[i + 2] - alpha * q[i + 2];
-      const Scalar z0 = B[0] * r0 + B[1] * r1 + B[2] * r2;
-      const Scalar z1 = B[3] * r0 + B[4] * r1 + B[5] * r2;
-      const Scalar z2 = B[6] * r0 + B[7] * r1 + B[8] * r2;
+      Scalar zi[3];
+      node_block_times(blocks + 3 * i, r0, r1, r2, zi);  // node i / 3's block
       r[i] = r0, r[i + 1] = r1, r[i + 2] = r2;
-      z[i] = z0, z[i + 1] = z1, z[i + 2] = z2;
-      s_rz += r0 * z0 + r1 * z1 + r2 * z2;
+      z[i] = zi[0], z[i + 1] = zi[1], z[i + 2] = zi[2];
+      s_rz += r0 * zi[0] + r1 * zi[1] + r2 * zi[2];
       s_rr += r0 * r0 + r1 * r1 + r2 * r2;
     }
     partial[2 * c] = s_rz, partial[2 * c + 1] = s_rr;

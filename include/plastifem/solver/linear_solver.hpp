@@ -267,23 +267,6 @@ class BasicLinearSolver {
     for (Index I : bad_row_)
       if (I >= 0) fail<SolverError>("CG: the diagonal block of block row {} is not positive definite (indefinite system)", I);
   }
-  /// z = P r with the node blocks' inverses; returns r.z, summed in row order (so zeros appended
-  /// to the vectors change nothing).
-  Scalar apply_node_blocks(const Vector& r, Vector& z) const {
-    Scalar rz = 0;
-    const Index nb = static_cast<Index>(node_inverse_.size() / 9);
-    for (Index I = 0; I < nb; ++I) {
-      const Scalar* S = node_inverse_.data() + 9 * static_cast<size_t>(I);  // symmetric
-      const Scalar r0 = r[3 * I], r1 = r[3 * I + 1], r2 = r[3 * I + 2];
-      const Scalar z0 = S[0] * r0 + S[1] * r1 + S[2] * r2;
-      const Scalar z1 = S[3] * r0 + S[4] * r1 + S[5] * r2;
-      const Scalar z2 = S[6] * r0 + S[7] * r1 + S[8] * r2;
-      z[3 * I] = z0, z[3 * I + 1] = z1, z[3 * I + 2] = z2;
-      rz += r0 * z0 + r1 * z1 + r2 * z2;
-    }
-    return rz;
-  }
-
   /// The inverses of the groups' diagonal blocks of A (set_coupled_rows).
   void factorise_groups(const BlockSymmetricMatrix& A) {
     const BlockPattern& p = A.pattern();
@@ -431,8 +414,8 @@ LinearSolveReport BasicLinearSolver<Unused>::solve_cg(const BlockSymmetricMatrix
   }
   A.multiply(x, q_, threads_);
   r_ = b - q_;
-  z_ = inv_diag_.cwiseProduct(r_);
-  if (node_blocks) apply_node_blocks(r_, z_);
+  if (node_blocks) apply_node_blocks(node_inverse_.data(), r_.data(), z_.data(), n, threads_);
+  else z_ = inv_diag_.cwiseProduct(r_);
   if (!groups_.empty()) apply_groups(r_, z_);
   p_ = z_;
   Scalar rz = dot(r_, z_);
