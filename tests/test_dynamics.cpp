@@ -15,7 +15,10 @@
 //  - a real-time step beyond its linearisation's reach (a twisted tube let go) is redone as an
 //    accurate step, and the run goes on; without that the linearised release inverts elements;
 //    largest_edge_change, the reach's measure, on a rigid turn and a stretch;
-//  - statics continue from the current state and load.
+//  - statics continue from the current state and load;
+//  - the equation of motion (solver/equation_of_motion.hpp), the one residual of the steps,
+//    statics and the reactions, against its formula with Eigen's sparse products; a constant
+//    tangent is assembled once and f_int = K u.
 #include "catch.hpp"
 
 #include <plastifem/plastifem.hpp>
@@ -516,4 +519,134 @@ TEST_CASE("Material::from_abaqus and add_nodal_forces", "[material][loads]") {
   s.set_state(u, Vector::Zero(s.num_dofs()));
   CHECK(s.external_work_potential() == 1 - 6);  // f . u
   CHECK_THROWS_AS(s.add_nodal_forces(nodes, std::vector<Vec3>{Vec3(1, 0, 0)}), InvalidArgument);
+}
+
+static bool right_has(const std::vector<Index>& nodes, Index i) { return std::find(nodes.begin(), nodes.end(), i) != nodes.end(); }
+
+TEST_CASE("the equation of motion: one residual for the step, statics and the reactions, equal to its formula",
+          "[dynamics][operator]") {
+  // solver/equation_of_motion.hpp on its own parts (no Solver): a Neo-Hookean bar fixed at
+  // x = 0, gravity, Rayleigh damping, and a random (u, v, a). The formula is evaluated with
+  // Eigen's sparse products of the full matrices: the two differ by the products' round-off,
+  // a few eps times the largest term (tolerance 1e-12 of it).
+  using E = Hex8;
+  using Model = NeoHookean;
+  const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
+  SolverSettings st;
+  st.rayleigh_mass = 0.7;
+  st.rayleigh_stiffness = 0.02;
+  Discretization<E, Model> body(mesh, soft);
+  const Index n = body.num_dofs();
+  Constraints constraints(mesh.num_nodes());
+  const auto left = select_nodes(mesh, [](const Vec3& X) { return X.x() < 1e-9; });
+  constraints.add(left, PrescribedMotion{}, DofMask{});
+  Loads<E> loads;
+  loads.add(Loads<E>::body_force(Vec3(0, 0, -9.81)), [](Scalar t) { return 1 + t; }, "gravity");
+  loads.build(mesh, soft.density, st.mass, n);
+  System<E, Model> system(st);
+  system.rebuild(body, st, constraints.constrained_dofs());
+  SolverParts<E, Model> p{body, system, constraints, loads, st, 2};
+  EquationOfMotion<E, Model> equation;
+  equation.resize(n);
+
+  std::srand(7);
+  const Vector u = 0.02 * Vector::Random(n), v = Vector::Random(n), a = Vector::Random(n);
+  const Scalar t = 0.25;
+  Vector f_int(n), f_ext(n), r(n);
+  REQUIRE(equation.internal_force(p, u, f_int, false, TangentKind::Exact));
+  REQUIRE(EquationOfMotion<E, Model>::damping_stiffness_at(p, u));
+  loads.assemble(t, f_ext);
+  const SparseMatrix M = system.M.to_sparse(), Kd = system.Kd.to_sparse();
+  // Kd is the projected tangent at u.
+  CHECK((SparseMatrix(Kd - observables::tangent(body, u, TangentKind::Projected, 1))).norm() <= 1e-13 * Kd.norm());
+  auto free_norm = [&](const Vector& x) { return system.free_norm(x); };
+  const Vector inertia = M * a, damping = st.rayleigh_mass * (M * v) + st.rayleigh_stiffness * (Kd * v);
+  const Scalar largest = std::max({free_norm(inertia), free_norm(damping), free_norm(f_int)});
+
+  SECTION("dynamics: M a + D v + f_int - f_ext") {
+    const auto norms = equation.residual(p, {&a, &v, nullptr, 1}, f_int, f_ext, r);
+    const Vector expected = inertia + damping + f_int - f_ext;
+    CHECK((r - expected).norm() <= 1e-12 * largest);
+    CHECK(norms.residual == Approx(free_norm(expected)).epsilon(1e-12));
+    CHECK(norms.largest_term == Approx(largest).epsilon(1e-12));
+  }
+  SECTION("generalized-alpha: w_m M a + h_n + D v + f_int - f_ext") {
+    const Scalar w = 0.8;
+    const Vector h = Vector::Random(n);
+    equation.residual(p, {&a, &v, &h, w}, f_int, f_ext, r);
+    CHECK((r - (w * inertia + h + damping + f_int - f_ext)).norm() <= 1e-12 * (largest + h.norm()));
+  }
+  SECTION("the initial acceleration balances it: r = 0 at the free dofs, moving constraints and damping") {
+    // Dynamics::initial_acceleration solves M_ff a_f = -(residual at a = 0 on the free dofs and
+    // the path's a_c on the constrained ones); the residual with that a vanishes to the mass
+    // solve's tolerance (CG to 1e-13 of |rhs|) at the free dofs.
+    const auto right = select_nodes(mesh, [](const Vec3& X) { return X.x() > 4 - 1e-9; });
+    constraints.add(right,
+                    PrescribedMotion{[](Scalar time, const Vec3&) { return Vec3(0.1 * time * time, 0, 0); },
+                                     [](Scalar time, const Vec3&) { return Vec3(0.2 * time, 0, 0); },
+                                     [](Scalar, const Vec3&) { return Vec3(0.2, 0, 0); }},
+                    DofMask{});
+    system.rebuild(body, st, constraints.constrained_dofs());
+    REQUIRE(EquationOfMotion<E, Model>::damping_stiffness_at(p, u));
+    Dynamics<E, Model> dynamics;
+    dynamics.resize(n);
+    MotionState s;
+    s.reset(n);
+    s.u = u, s.v = v, s.t = t;
+    Vector a0(n);
+    dynamics.initial_acceleration(p, s, a0);
+    for (Index d : system.constrained_dofs()) CHECK(a0[d] == (d % 3 == 0 && right_has(right, d / 3) ? 0.2 : 0.0));
+    const auto norms = equation.residual(p, {&a0, &v, nullptr, 1}, f_int, f_ext, r);
+    CHECK(norms.residual <= 1e-11 * norms.largest_term);
+  }
+  SECTION("statics: f_int - f_ext, bit for bit") {
+    const auto norms = equation.residual(p, {nullptr, nullptr, nullptr, 1}, f_int, f_ext, r);
+    CHECK(r == Vector(f_int - f_ext));
+    CHECK(norms.largest_term == free_norm(f_int));
+  }
+  SECTION("the reactions: the residual at the constrained dofs, Kd taken at the state") {
+    MotionState s;
+    s.reset(n);
+    s.u = u, s.v = v, s.a = a, s.t = t;
+    const Vector R = observables::reaction_forces(body, system, loads, st, s, 1);
+    const Vector expected = inertia + damping + f_int - f_ext;
+    Scalar off = 0, on = 0;
+    for (Index d = 0; d < n; ++d) {
+      if (system.constrained(d)) on = std::max(on, std::abs(R[d] - expected[d]));
+      else off = std::max(off, std::abs(R[d]));
+    }
+    CHECK(off == 0);
+    CHECK(on <= 1e-12 * largest);
+  }
+}
+
+TEST_CASE("the equation of motion, constant tangent: K assembled once per rest-shape epoch, f_int = K u",
+          "[dynamics][operator]") {
+  // Linear: f_int(u) = K0 u, so the product equals the assembled force to round-off: the
+  // assembly forms u as x - X with |X| <= 3 and |u| <= 0.01, which loses eps |X| / |u| ~ 1e-13 of
+  // u's digits (tolerance 1e-12). A second evaluation does not assemble (K keeps its stamp).
+  using E = Tet4;
+  const Mesh<E> mesh = bar_mesh<E>(3, 2, 2);
+  SolverSettings st;
+  Discretization<E, Linear> body(mesh, soft);
+  const Index n = body.num_dofs();
+  Constraints constraints(mesh.num_nodes());
+  Loads<E> loads;
+  loads.build(mesh, soft.density, st.mass, n);
+  System<E, Linear> system(st);
+  system.rebuild(body, st, constraints.constrained_dofs());
+  SolverParts<E, Linear> p{body, system, constraints, loads, st, 1};
+  EquationOfMotion<E, Linear> equation;
+  equation.resize(n);
+  std::srand(11);
+  const Vector u = 0.01 * Vector::Random(n);
+  Vector f(n), assembled(n);
+  REQUIRE(equation.internal_force(p, u, f, false, TangentKind::Projected));
+  const auto stamp = system.tangent_stamp();
+  body.assemble(u, assembled, nullptr, TangentKind::Projected, 1);
+  CHECK((f - assembled).norm() <= 1e-12 * assembled.norm());
+  const Vector u2 = 2 * u;
+  REQUIRE(equation.internal_force(p, u2, f, true, TangentKind::Projected));
+  CHECK(system.tangent_stamp() == stamp);
+  CHECK((f - 2 * assembled).norm() <= 1e-12 * assembled.norm());
 }

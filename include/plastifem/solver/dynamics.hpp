@@ -26,7 +26,8 @@
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
 // acceleration, unless the state's balances the current loads, constraints and inertia settings
 // (MotionState::balance), comes from equilibrium at t_n:
-//   M a_n = f_ext(t_n) - f_int(u_n) - D v_n  at the free dofs, a_n = the path's at constrained ones.
+//   M_ff a_f = f_ext(t_n) - f_int(u_n) - D v_n - M_fc a_c  at the free dofs f, a_c = the path's
+// at the constrained ones c.
 //
 // Rayleigh damping D = alpha M + beta Kd (seed 001 eq. 20, D = alpha M + beta K, with the
 // stiffness of its corotational balance eq. 40, R K_lin R^T): Kd = K_proj(u_p), the projected
@@ -42,11 +43,10 @@
 // A hyperelastic tangent carries the stress (geometric stiffness), which the rotation of a
 // stressed body does change: there beta also damps the spin of a body stretched by it.
 // Failures throw SolverError; the trial state may then hold anything, the state n is untouched.
-#include <plastifem/solver/loads.hpp>
+#include <plastifem/solver/equation_of_motion.hpp>
 #include <plastifem/solver/newmark.hpp>
 #include <plastifem/solver/newton.hpp>
 #include <plastifem/solver/state.hpp>
-#include <plastifem/solver/system.hpp>
 
 #include <plastifem/core/parallel.hpp>
 
@@ -89,35 +89,21 @@ Scalar largest_edge_change(const Mesh<E>& mesh, const Vector& u0, const Vector& 
   return std::sqrt(m);
 }
 
-/// What a step works with: the parts of a Solver, by reference.
-template <FiniteElement E, class Elastic, bool Enriched = false>
-struct SolverParts {
-  Discretization<E, Elastic, Enriched>& body;
-  System<E, Elastic, Enriched>& system;
-  const Constraints& constraints;
-  const Loads<E>& loads;
-  const SolverSettings& settings;
-  int threads;
-
-  /// What an acceleration solved now balances (MotionState::balance).
-  Balance balance() const {
-    return {loads.version(), constraints.version(), settings.mass, settings.rayleigh_mass, settings.rayleigh_stiffness};
-  }
-};
-
 template <FiniteElement E, class Elastic, bool Enriched = false>
 class Dynamics {
  public:
   using Parts = SolverParts<E, Elastic, Enriched>;
+  using Equation = EquationOfMotion<E, Elastic, Enriched>;
   using StateT = MotionState;  // the plastic part is the solver's (plastic/)
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   static constexpr bool constant_tangent = Elastic::constant_tangent;
 
   /// Sizes the scratch vectors for n dofs (no allocation in the step loop afterwards).
   void resize(Index n) {
-    for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_, &damping_,
-                      &path_.u, &path_.v, &path_.a, &first_increment_, &u_rel_, &history_})
+    for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_, &path_.u,
+                      &path_.v, &path_.a, &first_increment_, &history_})
       x->setZero(n);
+    equation_.resize(n);
     linearisation_ = {};
   }
 
@@ -134,22 +120,22 @@ class Dynamics {
 
   /// a = the acceleration of state s from equilibrium (see the file comment).
   void initial_acceleration(Parts& p, const StateT& s, Vector& a) {
-    damping_stiffness_at(p, s.u);
+    Equation::damping_stiffness_at(p, s.u);
     p.loads.assemble(s.t, f_ext_);
-    const bool ok = evaluate(p, s.u, f_int_, false, TangentKind::Projected);
+    const bool ok = equation_.internal_force(p, s.u, f_int_, false, TangentKind::Projected);
     if (!ok || !f_ext_.allFinite())
       fail<SolverError>("acceleration at t = {}: the force is not finite{}; the state is unchanged", s.t,
                         where_invalid(p, s.u));
-    rhs_ = f_ext_ - f_int_;
-    add_damping(p, s.v, -1.0, rhs_);
-    // The path's accelerations at constrained dofs, moved to the right-hand side: - M_fc a_c.
+    // M a_f = -r with r the residual at a = 0 on the free dofs and the path's accelerations on
+    // the constrained ones (their inertia M_fc a_c moves to the right-hand side).
     path_.a.setZero();
-    if (p.constraints.any_motion()) {
+    const bool moving = p.constraints.any_motion();
+    if (moving) {
       work_ = s.u;
       p.constraints.evaluate(s.t, 1.0, position_of(p), work_, nullptr, &path_.a);
-      p.system.M.multiply(path_.a, work_, p.threads);
-      rhs_ -= work_;
     }
+    equation_.residual(p, {moving ? &path_.a : nullptr, &s.v, nullptr, 1}, f_int_, f_ext_, r_);
+    rhs_ = -r_;
     p.system.form_mass(p.threads);
     p.system.zero_held(rhs_);
     // The mass matrix is well conditioned (Jacobi-scaled condition number ~10-50 for the
@@ -163,42 +149,6 @@ class Dynamics {
       direct.solve(p.system.A, rhs_, a);
     }
     for (Index d : p.system.constrained_dofs()) a[d] = path_.a[d];
-  }
-
-  /// f = f_int(u), and K(u) into the system's K when asked. Constant-tangent models: K
-  /// assembled once per rest-shape epoch, f_int = K (u - u_rest) (Linear: K0 (x - X0) = K u
-  /// while the rest shapes are the mesh's; u_rest = x - X after plastic flow). false if some
-  /// element cannot be evaluated.
-  bool evaluate(Parts& p, const Vector& u, Vector& f, bool with_tangent, TangentKind kind) {
-    if constexpr (constant_tangent) {
-      const auto epoch = p.body.data().epoch();
-      if (!p.system.constant_tangent_current(epoch)) {
-        if (!p.system.assemble(p.body, u, f, true, kind, p.threads)) return false;  // not recorded: assembled again
-        p.system.set_constant_tangent_current(epoch);
-      }
-      if (p.body.has_rest_displacement()) {  // plastic flow moved the rest shapes: f = K (u - u_rest)
-        u_rel_ = u - p.body.rest_displacement();
-        p.system.K.multiply(u_rel_, f, p.threads);
-      } else {
-        p.system.K.multiply(u, f, p.threads);
-      }
-      return f.allFinite();
-    } else {
-      return p.system.assemble(p.body, u, f, with_tangent, kind, p.threads);
-    }
-  }
-
-  /// out += factor D v, D = alpha M + beta Kd (Rayleigh, Kd from damping_stiffness_at). `out`
-  /// must not be work_ (its scratch).
-  void add_damping(Parts& p, const Vector& v, Scalar factor, Vector& out) {
-    add_rayleigh_damping(p.system.M, p.system.Kd, p.settings, v, factor, out, work_, p.threads);
-  }
-
-  /// The system's Kd = K_proj(u) (file comment; System::damping_stiffness_at). false if some
-  /// element cannot be evaluated at u (inverted, for an energy with ln J).
-  static bool damping_stiffness_at(Parts& p, const Vector& u) {
-    if (p.settings.rayleigh_stiffness == 0) return true;
-    return p.system.damping_stiffness_at(p.body, u, constant_tangent, p.threads);
   }
 
   /// " (element e is inverted ...)" for a non-finite force at u, or "" if none is found.
@@ -238,7 +188,7 @@ class Dynamics {
       if (predictor) scheme(p.settings, dt).predictor(n.u, n.v, a_start_, u_);
       else u_ = n.u;
       set_prescribed(p, u_);
-      if (!damping_stiffness_at(p, u_) && !damping_stiffness_at(p, n.u))
+      if (!Equation::damping_stiffness_at(p, u_) && !Equation::damping_stiffness_at(p, n.u))
         fail<SolverError>("Newmark step at t = {}: the current state cannot be evaluated{}; the state is unchanged", t1,
                           where_invalid(p, n.u));
     }
@@ -252,7 +202,7 @@ class Dynamics {
     if (nm.alpha_f != 0) {
       p.loads.assemble(n.t, rhs_);
       history_ += nm.alpha_f * (f_int_n - rhs_);
-      add_damping(p, n.v, nm.alpha_f, history_);
+      equation_.add_damping(p, n.v, nm.alpha_f, history_);
     }
     history_ /= 1 - nm.alpha_f;
     if (!history_.allFinite())
@@ -271,38 +221,17 @@ class Dynamics {
     for (Index d : p.system.constrained_dofs()) v_[d] = path_.v[d];
   }
 
-  /// r_ = w_m M a(u) + f_int - f_ext + D v(u) + h_n (f_int_ holds f_int(u); w_m = 1, h_n = 0 for
-  /// Newmark); returns |r| over the free dofs and sets `scale` to the largest term of the balance.
+  /// r_ = the residual at u (EquationOfMotion, with Newmark's a(u), v(u) and generalized-alpha's
+  /// weights; f_int holds f_int(u)); returns |r| over the free dofs and sets `scale` to the
+  /// largest term of the balance.
   Scalar dynamic_residual(Parts& p, const StateT& n, const Newmark& nm, const Vector& u, const Vector& f_int,
                           Scalar f_ext_norm, Scalar& scale) {
     kinematics(p, n, nm, u);
-    p.system.M.multiply(a_, r_, p.threads);
-    if (nm.weighted()) {
-      r_ *= nm.mass_weight();
-      r_ += history_;
-    }
-    const Scalar inertia = p.system.free_norm(r_);
-    r_ += f_int - f_ext_;
-    Scalar damping = 0;
-    if (p.settings.rayleigh_mass != 0 || p.settings.rayleigh_stiffness != 0) {
-      damping_.setZero();
-      add_damping(p, v_, 1.0, damping_);
-      damping = p.system.free_norm(damping_);
-      r_ += damping_;
-    }
-    scale = std::max({f_ext_norm, p.system.free_norm(f_int), inertia, damping});
-    return p.system.free_norm(r_);
-  }
-
-  /// Forms A = cm M + K + cd Kd in the system unless it holds that matrix already: a constant
-  /// tangent (Linear) formed with the same coefficients, or `current` (the tangent has not
-  /// changed since it was formed). Returns whether the matrix was kept (the linear solver then
-  /// reuses its factorisation or preconditioner).
-  static bool form_system(Parts& p, Scalar cm, Scalar cd, bool current) {
-    bool same = current;
-    if constexpr (constant_tangent) same = p.system.same_coefficients(cm, cd);
-    if (!same) p.system.form(cm, cd, p.threads);
-    return same;
+    const bool weighted = nm.weighted();
+    const auto norms = equation_.residual(p, {&a_, &v_, weighted ? &history_ : nullptr, nm.mass_weight()}, f_int,
+                                          f_ext_, r_);
+    scale = std::max(f_ext_norm, norms.largest_term);
+    return norms.residual;
   }
 
   // --- accurate mode ----------------------------------------------------------------------
@@ -318,7 +247,7 @@ class Dynamics {
     Scalar scale_ = 0;
 
     Scalar residual(const Vector& u, bool with_tangent) {
-      const bool ok = d.evaluate(p, u, d.f_int_, with_tangent, kind);
+      const bool ok = d.equation_.internal_force(p, u, d.f_int_, with_tangent, kind);
       if (with_tangent) system_stale = true;
       tangent_now = with_tangent;
       const Scalar r = d.dynamic_residual(p, n, nm, u, d.f_int_, f_ext_norm, scale_);
@@ -347,7 +276,7 @@ class Dynamics {
         if (it == 0 && n.warm_start.size() == n.num_dofs()) du = n.warm_start;
         else du.setZero();
         p.system.zero_held(du);
-        const bool same = form_system(p, cm, cd, !system_stale);
+        const bool same = Equation::form_matrix(p, cm, cd, !system_stale);
         system_stale = false;
         return p.system.linear().solve(p.system.A, d.rhs_, du, tol, same);
       };
@@ -375,7 +304,7 @@ class Dynamics {
     const Newmark nm = scheme(st, dt);
     start_step(p, n, dt, predictor);
     if (nm.weighted()) {
-      if (!evaluate(p, n.u, f_int_, false, TangentKind::Projected))
+      if (!equation_.internal_force(p, n.u, f_int_, false, TangentKind::Projected))
         fail<SolverError>("Newmark step at t = {}: the current state cannot be evaluated{}; the state is unchanged",
                           n.t + dt, where_invalid(p, n.u));
       weighted_history(p, n, nm, f_int_);
@@ -476,7 +405,7 @@ class Dynamics {
     // The linearisation at u_n: kept from the end of the previous step when that step made
     // this state and nothing has changed K or the rest shapes since; else assembled now.
     if (!linearisation_.of(p, n, kind)) {
-      if (!evaluate(p, n.u, f_lin_, true, kind))
+      if (!equation_.internal_force(p, n.u, f_lin_, true, kind))
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
       linearisation_ = Linearisation::at(p, n.serial, kind);
@@ -513,7 +442,7 @@ class Dynamics {
       else
         du_.setZero();
       p.system.zero_held(du_);
-      const bool same = form_system(p, cm, cd, false);
+      const bool same = Equation::form_matrix(p, cm, cd, false);
       return p.system.linear().solve(p.system.A, rhs_, du_, st.linear.tolerance, same);
     };
     linear_residual();
@@ -524,7 +453,7 @@ class Dynamics {
       if (kind != TangentKind::Exact) throw;
       kind = TangentKind::Projected;  // indefinite exact tangent: the projected one
       linearisation_ = {};
-      if (!evaluate(p, n.u, f_lin_, true, kind))
+      if (!equation_.internal_force(p, n.u, f_lin_, true, kind))
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
       linearisation_ = Linearisation::at(p, n.serial, kind);
@@ -541,7 +470,7 @@ class Dynamics {
       return redone(p, n, trial, dt, serial, t0, lr.iterations);
     // The new state, evaluated: the check, the reported residual, and the next linearisation.
     const TangentKind next_kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
-    const bool ok = evaluate(p, u_, f_int_, true, next_kind);
+    const bool ok = equation_.internal_force(p, u_, f_int_, true, next_kind);
     if (!ok || !u_.allFinite())
       fail<SolverError>("real-time step at t = {}: the new state cannot be evaluated{}; the state is unchanged", t1,
                         where_invalid(p, u_));
@@ -597,7 +526,8 @@ class Dynamics {
     return r;
   }
 
-  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, damping_, first_increment_, u_rel_;
+  Equation equation_;
+  Vector f_int_, f_lin_, f_ext_, r_, du_, rhs_, u_, u_new_, a_, v_, a_start_, work_, first_increment_;
   Vector history_;  ///< generalized-alpha's h_n for the step under way
   PathValues path_;
   Index path_jumps_ = 0;  ///< nodes whose path jumps at the step's end (Constraints::evaluate)

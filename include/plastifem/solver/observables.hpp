@@ -2,8 +2,7 @@
 // What a simulator reads off a committed state: forces, energies, reactions, the tangent. Each
 // is a function of the parts the Solver holds (the body, assembly/discretization.hpp; the system,
 // system.hpp; the loads) and of a state, so that the Solver only forwards to it.
-#include <plastifem/solver/loads.hpp>
-#include <plastifem/solver/system.hpp>
+#include <plastifem/solver/equation_of_motion.hpp>
 
 #include <vector>
 
@@ -42,22 +41,22 @@ Scalar external_work_potential(const Loads& loads, Scalar t, const Vector& u) {
   return f.dot(u);
 }
 
-/// Reaction forces at the system's constrained dofs of state s (zero elsewhere):
-/// f_int(u) + M a + D v - f_ext(t), D = alpha M + beta Kd with Kd the projected tangent at u
-/// (the damping of solver/dynamics.hpp, taken at the state itself: there is no step to predict).
-template <class Body, class System, class Loads, class State>
-Vector reaction_forces(const Body& body, const System& system, const Loads& loads, const SolverSettings& settings,
-                       const State& s, int threads) {
+/// Reaction forces at the system's constrained dofs of state s (zero elsewhere): the equation of
+/// motion's residual there, f_int(u) + M a + D v - f_ext(t) (solver/equation_of_motion.hpp), with
+/// D = alpha M + beta Kd and Kd the projected tangent at u (the step takes it at its predicted
+/// end; here there is no step to predict, so at the state itself).
+template <FiniteElement E, class Elastic, bool Enriched, class State>
+Vector reaction_forces(const Discretization<E, Elastic, Enriched>& body, const System<E, Elastic, Enriched>& system,
+                       const Loads<E>& loads, const SolverSettings& settings, const State& s, int threads) {
+  using Equation = EquationOfMotion<E, Elastic, Enriched>;
   const Index n = body.num_dofs();
-  Vector f(n), fe(n), r(n), w(n);
+  Vector f(n), fe(n), r(n), damping(n), work(n);
   const bool stiffness_damping = settings.rayleigh_stiffness != 0;
   BlockSymmetricMatrix Kd;
   if (stiffness_damping) Kd = body.assembler().zero_matrix();
   body.assemble(s.u, f, stiffness_damping ? &Kd : nullptr, TangentKind::Projected, threads);
   loads.assemble(s.t, fe);
-  system.M.multiply(s.a, r, threads);
-  r += f - fe;
-  add_rayleigh_damping(system.M, Kd, settings, s.v, 1.0, r, w, threads);
+  Equation::residual(system, Kd, settings, {&s.a, &s.v, nullptr, 1}, f, fe, r, damping, work, threads);
   for (Index i = 0; i < n; ++i)
     if (!system.constrained(i)) r[i] = 0;
   return r;

@@ -6,8 +6,10 @@
 //   system.hpp                   matrices, held dofs, linear solvers (rebuilt with the dof map)
 //   boundary.hpp, loads.hpp      constraint sets and loads, each with a handle
 //   state.hpp                    u, v, a, t, ...: a step is a transaction on a trial copy
+//   equation_of_motion.hpp       the operator: r = M a + D v + f_int(u) - f_ext, K, Kd, A
 //   newmark.hpp, newton.hpp      the formulas, and one Newton loop for every nonlinear solve
-//   dynamics.hpp, statics.hpp    a Newmark step (accurate or real time), static load stepping
+//   dynamics.hpp, statics.hpp    the integrators: a Newmark step (accurate or real time), static
+//                                load stepping
 //   step_control.hpp             automatic step cutting, commit only on success
 //   observables.hpp              forces, energies, reactions, tangent of a committed state
 //

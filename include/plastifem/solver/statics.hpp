@@ -5,6 +5,8 @@
 // current one, and prescribed displacements from their current values to their prescribed
 // ones, each increment solved from the last. Path-dependent materials (plasticity) see the
 // loading path, not a restart from zero. An increment that fails is halved, up to 10 times.
+// The residual is the equation of motion's (solver/equation_of_motion.hpp) with a = v = 0:
+//   r(u) = f_int(u) - f_ext  at the free dofs.
 #include <plastifem/solver/dynamics.hpp>
 
 #include <chrono>
@@ -15,6 +17,7 @@ template <FiniteElement E, class Elastic, bool Enriched = false>
 class Statics {
  public:
   using Parts = SolverParts<E, Elastic, Enriched>;
+  using Equation = EquationOfMotion<E, Elastic, Enriched>;
   using StateT = MotionState;  // the plastic part is the solver's (plastic/)
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   static constexpr bool constant_tangent = Elastic::constant_tangent;
@@ -35,6 +38,7 @@ class Statics {
     const Index n = state.num_dofs();
     f_target_.resize(n), g_target_.resize(n), f_start_.resize(n), f_ext_.resize(n), f_int_.resize(n);
     r_.resize(n), du_.resize(n), rhs_.resize(n), u_new_.resize(n), u_.resize(n);
+    equation_.resize(n);
     p.loads.assemble(state.t, f_target_);
     if (!f_target_.allFinite()) fail<InvalidArgument>("external loads at t = {} are not finite", state.t);
     g_target_ = state.u;
@@ -91,11 +95,11 @@ class Statics {
     Scalar scale_ = 0;
 
     Scalar residual(const Vector& u, bool with_tangent) {
-      const bool ok = p.system.assemble(p.body, u, s.f_int_, with_tangent, kind, p.threads);
+      const bool ok = s.equation_.internal_force(p, u, s.f_int_, with_tangent, kind);
       tangent_now = with_tangent;
-      s.r_ = s.f_int_ - s.f_ext_;
-      scale_ = std::max(p.system.free_norm(s.f_ext_), p.system.free_norm(s.f_int_));
-      return ok ? p.system.free_norm(s.r_) : std::numeric_limits<Scalar>::quiet_NaN();
+      const auto norms = s.equation_.residual(p, {nullptr, nullptr, nullptr, 1}, s.f_int_, s.f_ext_, s.r_);
+      scale_ = std::max(p.system.free_norm(s.f_ext_), norms.largest_term);
+      return ok ? norms.residual : std::numeric_limits<Scalar>::quiet_NaN();
     }
     void tangent(const Vector& u) { residual(u, true); }
     bool tangent_current() const { return tangent_now; }
@@ -158,6 +162,7 @@ class Statics {
     return r;
   }
 
+  Equation equation_;
   Vector f_target_, g_target_, f_start_, f_ext_, f_int_, r_, du_, rhs_, u_new_, u_;
 };
 

@@ -170,7 +170,8 @@ class System {
   }
 
   /// K of a constant-tangent model, assembled once per rest-shape epoch: current while no
-  /// other assembly (a static solve's) has written K since.
+  /// rebuild and no other assembly has written K since (EquationOfMotion::internal_force
+  /// assembles it only when it is not).
   bool constant_tangent_current(std::uint64_t epoch) const {
     return K_constant_stamp_ == tangent_stamp_ && K_epoch_ == epoch;
   }
