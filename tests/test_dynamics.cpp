@@ -523,6 +523,29 @@ TEST_CASE("Material::from_abaqus and add_nodal_forces", "[material][loads]") {
 
 static bool right_has(const std::vector<Index>& nodes, Index i) { return std::find(nodes.begin(), nodes.end(), i) != nodes.end(); }
 
+/// The parts an EquationOfMotion works on, built without a Solver: the body, the constraints
+/// (nodes at x = 0 fixed if asked), no loads yet, and the system.
+template <FiniteElement E, class Model>
+struct OperatorParts {
+  const Mesh<E> mesh;
+  const SolverSettings settings;
+  Discretization<E, Model> body{mesh, soft};
+  const Index n = body.num_dofs();
+  Constraints constraints{mesh.num_nodes()};
+  Loads<E> loads;
+  System<E, Model> system{settings};
+  SolverParts<E, Model> parts{body, system, constraints, loads, settings, 2};
+  EquationOfMotion<E, Model> equation;
+
+  OperatorParts(Mesh<E> m, const SolverSettings& s, bool fix_left) : mesh(std::move(m)), settings(s) {
+    if (fix_left)
+      constraints.add(select_nodes(mesh, [](const Vec3& X) { return X.x() < 1e-9; }), PrescribedMotion{}, DofMask{});
+    loads.build(mesh, soft.density, settings.mass, n);
+    system.rebuild(body, settings, constraints.constrained_dofs());
+    equation.resize(n);
+  }
+};
+
 TEST_CASE("the equation of motion: one residual for the step, statics and the reactions, equal to its formula",
           "[dynamics][operator]") {
   // solver/equation_of_motion.hpp on its own parts (no Solver): a Neo-Hookean bar fixed at
@@ -531,23 +554,13 @@ TEST_CASE("the equation of motion: one residual for the step, statics and the re
   // a few eps times the largest term (tolerance 1e-12 of it).
   using E = Hex8;
   using Model = NeoHookean;
-  const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
-  SolverSettings st;
-  st.rayleigh_mass = 0.7;
-  st.rayleigh_stiffness = 0.02;
-  Discretization<E, Model> body(mesh, soft);
-  const Index n = body.num_dofs();
-  Constraints constraints(mesh.num_nodes());
-  const auto left = select_nodes(mesh, [](const Vec3& X) { return X.x() < 1e-9; });
-  constraints.add(left, PrescribedMotion{}, DofMask{});
-  Loads<E> loads;
+  SolverSettings damped;
+  damped.rayleigh_mass = 0.7;
+  damped.rayleigh_stiffness = 0.02;
+  OperatorParts<E, Model> o(bar_mesh<E>(4, 2, 2), damped, true);
+  auto& [mesh, st, body, n, constraints, loads, system, p, equation] = o;
   loads.add(Loads<E>::body_force(Vec3(0, 0, -9.81)), [](Scalar t) { return 1 + t; }, "gravity");
   loads.build(mesh, soft.density, st.mass, n);
-  System<E, Model> system(st);
-  system.rebuild(body, st, constraints.constrained_dofs());
-  SolverParts<E, Model> p{body, system, constraints, loads, st, 2};
-  EquationOfMotion<E, Model> equation;
-  equation.resize(n);
 
   std::srand(7);
   const Vector u = 0.02 * Vector::Random(n), v = Vector::Random(n), a = Vector::Random(n);
@@ -625,19 +638,8 @@ TEST_CASE("the equation of motion, constant tangent: K assembled once per rest-s
   // Linear: f_int(u) = K0 u, so the product equals the assembled force to round-off: the
   // assembly forms u as x - X with |X| <= 3 and |u| <= 0.01, which loses eps |X| / |u| ~ 1e-13 of
   // u's digits (tolerance 1e-12). A second evaluation does not assemble (K keeps its stamp).
-  using E = Tet4;
-  const Mesh<E> mesh = bar_mesh<E>(3, 2, 2);
-  SolverSettings st;
-  Discretization<E, Linear> body(mesh, soft);
-  const Index n = body.num_dofs();
-  Constraints constraints(mesh.num_nodes());
-  Loads<E> loads;
-  loads.build(mesh, soft.density, st.mass, n);
-  System<E, Linear> system(st);
-  system.rebuild(body, st, constraints.constrained_dofs());
-  SolverParts<E, Linear> p{body, system, constraints, loads, st, 1};
-  EquationOfMotion<E, Linear> equation;
-  equation.resize(n);
+  OperatorParts<Tet4, Linear> o(bar_mesh<Tet4>(3, 2, 2), SolverSettings{}, false);
+  auto& [mesh, st, body, n, constraints, loads, system, p, equation] = o;
   std::srand(11);
   const Vector u = 0.01 * Vector::Random(n);
   Vector f(n), assembled(n);
