@@ -39,8 +39,8 @@ class EquationOfMotion {
   static constexpr bool constant_tangent = Elastic::constant_tangent;
 
   /// The inertia and damping terms of one evaluation; a null pointer leaves its term out
-  /// (statics: a and v). The generalized-alpha balance, divided by 1 - alpha_f, weights the
-  /// inertia and adds the step's fixed history term:
+  /// (statics: a and v, `Motion{}`). The generalized-alpha balance, divided by 1 - alpha_f,
+  /// weights the inertia and adds the step's fixed history term (only with an inertia term):
   ///   r = w_m M a + h_n + f_int - f_ext + D v   (solver/newmark.hpp: w_m, h_n).
   struct Motion {
     const Vector* a = nullptr;
@@ -113,13 +113,10 @@ class EquationOfMotion {
     Norms norms;
     const Index n = f_int.size();
     r.resize(n), work.resize(n);
-    if (m.a || m.history) {
-      if (m.a) {
-        system.M.multiply(*m.a, r, threads);
-        if (m.mass_weight != 1) r *= m.mass_weight;
-      } else {
-        r.setZero();
-      }
+    eigen_assert((m.a || !m.history) && "EquationOfMotion::residual: a history term weights an inertia term");
+    if (m.a) {
+      system.M.multiply(*m.a, r, threads);
+      if (m.mass_weight != 1) r *= m.mass_weight;
       if (m.history) r += *m.history;
       norms.largest_term = system.free_norm(r);
       r += f_int - f_ext;

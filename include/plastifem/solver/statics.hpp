@@ -18,6 +18,7 @@ class Statics {
  public:
   using Parts = SolverParts<E, Elastic, Enriched>;
   using Equation = EquationOfMotion<E, Elastic, Enriched>;
+  using Motion = typename Equation::Motion;
   using StateT = MotionState;  // the plastic part is the solver's (plastic/)
   static constexpr bool has_exact_tangent = has_exact_tangent_v<Elastic>;
   static constexpr bool constant_tangent = Elastic::constant_tangent;
@@ -97,7 +98,7 @@ class Statics {
     Scalar residual(const Vector& u, bool with_tangent) {
       const bool ok = s.equation_.internal_force(p, u, s.f_int_, with_tangent, kind);
       tangent_now = with_tangent;
-      const auto norms = s.equation_.residual(p, {nullptr, nullptr, nullptr, 1}, s.f_int_, s.f_ext_, s.r_);
+      const auto norms = s.equation_.residual(p, Motion{}, s.f_int_, s.f_ext_, s.r_);
       scale_ = std::max(p.system.free_norm(s.f_ext_), norms.largest_term);
       return ok ? norms.residual : std::numeric_limits<Scalar>::quiet_NaN();
     }
