@@ -812,8 +812,9 @@ TEST_CASE("real-time mode and the lumped mass run plasticity too", "[plasticity]
 TEST_CASE("threads: a plastic run on two threads is bit for bit the run on one", "[plasticity][threads]") {
   // bar90: below the size from which matrix-vector products are threaded, so every loop of a
   // step sums in the same order whatever the thread count: the elements, the plastic update
-  // (one flow per element) and the re-preparation of the changed elements' data (each element
-  // into its own entry, in parallel since the sync went parallel).
+  // (one flow per element; the checks and volumes of the fused shapes, each element's verdict
+  // gathered in element order) and the re-preparation of the changed elements' data (each
+  // element into its own entry, in parallel since the sync went parallel).
   SolverSettings one, two;
   one.threads = 1;
   two.threads = 2;

@@ -20,6 +20,7 @@
 // committed one.
 #include <plastifem/assembly/discretization.hpp>
 #include <plastifem/assembly/shared_by_shape.hpp>
+#include <plastifem/core/parallel.hpp>
 #include <plastifem/core/polar.hpp>
 #include <plastifem/plastic/flow.hpp>
 #include <plastifem/plastic/fusion.hpp>
@@ -72,6 +73,8 @@ class Plasticity {
     z_.assign(ne, ElementNodes<E>::Zero());
     result_.assign(ne, FlowResult::Unchanged);
     changed_.assign(ne, 0);
+    degenerate_.assign(ne, 0);
+    element_moved_.assign(ne, 0);
     reports_.assign(ne, PlasticReport{});
     out_ = table;
     rest_new_ = table.rest;
@@ -159,13 +162,20 @@ class Plasticity {
       bool changes = false;
       for (Index e = 0; e < ne; ++e) changes = changes || changed_[e];
       if (changes) fusion_.fuse(mesh, z_, changed_, rest_new_, anchor);
+      // Each moved element's fused shape checked on the threads (nearly every element, right
+      // after a release), the verdicts applied in element order: the same result for any
+      // number of threads.
+      parallel_for(ne, threads, [&](Index e) {
+        degenerate_[e] = 0;
+        if (!moved(mesh, e, rest, rest_new_, 1e-4 * h_[e])) return;
+        const ElementNodes<E> X_new = element_of(mesh, e, rest_new_);
+        degenerate_[e] = !(shape_quality_at_least<E>(X_new, prm.min_rest_quality * q0_[e]) ||
+                           check_shape<E>(X_new).min_scaled_jacobian >=
+                               check_shape<E>(element_of(mesh, e, rest)).min_scaled_jacobian);
+      });
       accepted = true;
       for (Index e = 0; e < ne; ++e) {
-        if (!moved(mesh, e, rest, rest_new_, 1e-4 * h_[e])) continue;
-        const ElementNodes<E> X_new = element_of(mesh, e, rest_new_);
-        if (shape_quality_at_least<E>(X_new, prm.min_rest_quality * q0_[e]) ||
-            check_shape<E>(X_new).min_scaled_jacobian >= check_shape<E>(element_of(mesh, e, rest)).min_scaled_jacobian)
-          continue;
+        if (!degenerate_[e]) continue;
         accepted = false;
         if (!off[e]) off[e] = PlasticTable::switched_off, ++rep.switched_off;
         changed_[e] = 0;
@@ -186,12 +196,12 @@ class Plasticity {
       if (!changed_[e]) continue;
       copy_entries(out_, table, e);
     }
+    parallel_for(ne, threads, [&](Index e) {
+      element_moved_[e] = moved(mesh, e, rest, rest_new_, 0);
+      if (element_moved_[e]) table.volume[e] = rest_volume<E>(element_of(mesh, e, rest_new_)) / V0_[e];
+    });
     int changed_elements = 0;
-    for (Index e = 0; e < ne; ++e) {
-      if (!moved(mesh, e, rest, rest_new_, 0)) continue;
-      table.volume[e] = rest_volume<E>(element_of(mesh, e, rest_new_)) / V0_[e];
-      ++changed_elements;
-    }
+    for (Index e = 0; e < ne; ++e) changed_elements += element_moved_[e];
     rep.elements_changed = changed_elements;
     table.rest.swap(rest_new_);
     table.off.assign(off.begin(), off.end());
@@ -321,6 +331,7 @@ class Plasticity {
   std::vector<ElementNodes<E>> z_;
   std::vector<FlowResult> result_;
   std::vector<char> changed_, off_new_, node_moved_;
+  std::vector<char> degenerate_, element_moved_;  ///< per element: its fused shape degenerates; its rest shape moved
   std::vector<Index> moved_elements_;
   std::vector<PlasticReport> reports_;
   PlasticTable out_;  ///< the flowed entries of the changed elements, before the commit
