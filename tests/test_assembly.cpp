@@ -244,6 +244,17 @@ TEST_CASE("threaded block product equals the serial one to round-off on a large 
   const Vector ref = A.to_sparse() * x;
   CHECK((y1 - ref).norm() <= 1e-13 * ref.norm());
   CHECK((y2 - ref).norm() <= 1e-13 * ref.norm());
+  // Each product zeroes a thread's buffer only over the band its rows reach back to (here a
+  // part of the rows before its range): what lies below must stay zero from one product to the
+  // next. A product of another vector first, then x; on three threads, then on two again (a
+  // new split, new buffers).
+  Vector y3(A.rows());
+  A.multiply(Vector::Ones(A.rows()), y3, 3);
+  A.multiply(x, y3, 3);
+  CHECK((y3 - ref).norm() <= 1e-13 * ref.norm());
+  A.multiply(Vector::Ones(A.rows()), y2, 2);
+  A.multiply(x, y2, 2);
+  CHECK((y2 - ref).norm() <= 1e-13 * ref.norm());
 }
 
 TEST_CASE("value passes with threads cover every value once and equal the serial passes", "[assembly][threads]") {

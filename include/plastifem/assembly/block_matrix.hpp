@@ -208,12 +208,12 @@ class BlockSymmetricMatrix {
           const int t = omp_get_thread_num();
           const Index r0 = split_[t], r1 = split_[t + 1];
           Scalar* z = t == 0 ? nullptr : buffers_[t].data();
-          if (z) std::fill(z, z + 3 * r0, 0.0);
+          if (z) std::fill(z + 3 * buffer_start_[t], z + 3 * r0, 0.0);  // below: never written, zero
           multiply_rows(r0, r1, x.data(), y.data(), z);
 #pragma omp barrier
           // y += the buffered contributions to rows before each thread's range.
 #pragma omp for schedule(static)
-          for (Index i = 0; i < 3 * split_[threads - 1]; ++i) {
+          for (Index i = 3 * buffer_start_[0]; i < 3 * split_[threads - 1]; ++i) {
             Scalar s = 0;
             for (int u = 1; u < threads; ++u)
               if (i < 3 * split_[u]) s += buffers_[u][i];
@@ -293,11 +293,23 @@ class BlockSymmetricMatrix {
     buffers_.clear();  // of the old split; the product sizes them (prepare_buffers)
   }
   /// The product's buffers for threads 1.. of the split: the rows before each thread's range
-  /// (only matrices that are multiplied need them).
+  /// (only matrices that are multiplied need them). A thread's transposed updates reach back
+  /// only to the smallest column of its rows (the band behind its range): buffer_start_[t].
+  /// Each product zeroes and sums only from there; buffer_start_[0] is the smallest of them.
   void prepare_buffers(int threads) const {
     if (static_cast<int>(buffers_.size()) == threads) return;
+    const auto& p = *pattern_;
     buffers_.assign(threads, Vector());
-    for (int t = 1; t < threads; ++t) buffers_[t] = Vector::Zero(3 * split_[t]);
+    buffer_start_.assign(threads, 0);
+    Index first = p.num_block_rows;
+    for (int t = 1; t < threads; ++t) {
+      buffers_[t] = Vector::Zero(3 * split_[t]);
+      Index lo = split_[t];
+      for (Index I = split_[t]; I < split_[t + 1]; ++I) lo = std::min<Index>(lo, p.column[p.row_start[I]]);
+      buffer_start_[t] = lo;
+      first = std::min(first, lo);
+    }
+    buffer_start_[0] = first;
   }
 
   void build_csc_map() const {
@@ -333,6 +345,7 @@ class BlockSymmetricMatrix {
   // Scratch for threaded products and the CSC view, built on first use.
   mutable std::vector<Index> split_;
   mutable std::vector<Vector> buffers_;
+  mutable std::vector<Index> buffer_start_;
   mutable std::vector<int> csc_outer_, csc_inner_;
   mutable std::vector<size_t> csc_from_;
 };
