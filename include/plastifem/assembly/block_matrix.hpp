@@ -213,7 +213,7 @@ class BlockSymmetricMatrix {
 #pragma omp barrier
           // y += the buffered contributions to rows before each thread's range.
 #pragma omp for schedule(static)
-          for (Index i = 3 * buffer_start_[0]; i < 3 * split_[threads - 1]; ++i) {
+          for (Index i = 3 * reduction_start_; i < 3 * split_[threads - 1]; ++i) {
             Scalar s = 0;
             for (int u = 1; u < threads; ++u)
               if (i < 3 * split_[u]) s += buffers_[u][i];
@@ -295,7 +295,8 @@ class BlockSymmetricMatrix {
   /// The product's buffers for threads 1.. of the split: the rows before each thread's range
   /// (only matrices that are multiplied need them). A thread's transposed updates reach back
   /// only to the smallest column of its rows (the band behind its range): buffer_start_[t].
-  /// Each product zeroes and sums only from there; buffer_start_[0] is the smallest of them.
+  /// Each product zeroes them only from there, and sums them into y from the smallest of those
+  /// starts (reduction_start_).
   void prepare_buffers(int threads) const {
     if (static_cast<int>(buffers_.size()) == threads) return;
     const auto& p = *pattern_;
@@ -309,7 +310,7 @@ class BlockSymmetricMatrix {
       buffer_start_[t] = lo;
       first = std::min(first, lo);
     }
-    buffer_start_[0] = first;
+    reduction_start_ = first;
   }
 
   void build_csc_map() const {
@@ -346,6 +347,7 @@ class BlockSymmetricMatrix {
   mutable std::vector<Index> split_;
   mutable std::vector<Vector> buffers_;
   mutable std::vector<Index> buffer_start_;
+  mutable Index reduction_start_ = 0;
   mutable std::vector<int> csc_outer_, csc_inner_;
   mutable std::vector<size_t> csc_from_;
 };

@@ -200,9 +200,7 @@ class Plasticity {
       element_moved_[e] = moved(mesh, e, rest, rest_new_, 0);
       if (element_moved_[e]) table.volume[e] = rest_volume<E>(element_of(mesh, e, rest_new_)) / V0_[e];
     });
-    int changed_elements = 0;
-    for (Index e = 0; e < ne; ++e) changed_elements += element_moved_[e];
-    rep.elements_changed = changed_elements;
+    rep.elements_changed = static_cast<int>(std::count(element_moved_.begin(), element_moved_.end(), 1));
     table.rest.swap(rest_new_);
     table.off.assign(off.begin(), off.end());
     table.version = version;
