@@ -27,6 +27,10 @@
 //              (corotational: the exact tangent, the default; corotational-warped: R K0 R^T)
 //              [--quick]   (--quick: accurate mode only, no LDLT for nonlinear models)
 //              [--cg-cap N] (real-time rows also with CG capped at N iterations; default 5, 0: none)
+//              [--tangent-reach R] (the corotational and Neo-Hookean real-time rows also with
+//               NewmarkSettings::tangent_reach = R, mode "rt-K<R>": the tangent kept while no edge
+//               has changed by more than R of its length; its `kept` column is the fraction of
+//               measured steps that kept it)
 //              [--preconditioner jacobi|block] (CG's: Jacobi, the default, or 3 x 3 node blocks; the
 //               solver column then says BJ-CG)
 //              [--after T] (T seconds of the scene first, not timed: the 100 measured steps then
@@ -104,6 +108,7 @@ struct Row {
   double heap_mb;  ///< peak heap of the row's solver: the largest of its heap after construction and after each step
   double median_ms, min_ms, max_ms, newton, linear;
   Scalar tip_uz;
+  double kept = 0;  ///< fraction of the measured steps that kept their tangent (NewmarkSettings::tangent_reach)
 };
 
 /// Heap memory in use, in MB (glibc's allocator statistics; 0 elsewhere).
@@ -122,12 +127,13 @@ Scalar after_seconds = 0;
 CgPreconditioner preconditioner = CgPreconditioner::Jacobi;
 
 /// cg_cap > 0: real-time mode with CG stopped after cg_cap iterations (or at 1e-6, if sooner).
+/// tangent_reach > 0: real-time mode keeping its tangent within that reach.
 /// P: a plastic policy, with tau = 10^4, nu = 0.4, kappa = 0.2 and the physical stress, which
 /// the gravity load does not reach: the cost of carrying plasticity in a scene that stays
 /// elastic (bench_policy_overhead also measures it flowing).
 template <class E, class Model, class P = NoPlasticity>
 Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int threads, bool exact_tangent = true,
-            int cg_cap = 0) {
+            int cg_cap = 0, Scalar tangent_reach = 0) {
   const Mesh<E>& mesh = scene.mesh;
   SolverSettings st;
   st.newton.exact_tangent = exact_tangent;
@@ -135,6 +141,7 @@ Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int 
   st.linear.accept_capped = cg_cap > 0;                   // a fixed-cost step: the cap is meant
   st.linear.preconditioner = preconditioner;
   st.newmark.mode = mode;
+  st.newmark.tangent_reach = tangent_reach;
   st.threads = threads;
 #ifdef _OPENMP
   omp_set_num_threads(threads);
@@ -148,7 +155,7 @@ Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int 
   const Index tip = scene.tip;
   for (long k = std::lround(after_seconds / 0.01); k > 0; --k) s.step(0.01);
   std::vector<double> ms;
-  double newton = 0, lin = 0;
+  double newton = 0, lin = 0, kept = 0;
   double peak = heap_mb();
   for (int k = 1; k <= 100; ++k) {
     const StepReport r = s.step(0.01);
@@ -157,6 +164,7 @@ Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int 
       ms.push_back(r.wall_ms);
       newton += r.newton_iterations;
       lin += r.linear_iterations;
+      kept += r.tangents_kept;
     }
   }
   std::sort(ms.begin(), ms.end());
@@ -167,8 +175,11 @@ Row measure(const Scene<E>& scene, LinearSolverKind kind, NewmarkMode mode, int 
           kind == LinearSolverKind::Direct ? std::string(direct_solver_name(DirectSolver::Auto))
           : fmt::format("{}{}", preconditioner == CgPreconditioner::BlockJacobi ? "BJ-" : "",
                         cg_cap > 0 ? fmt::format("CG<={}", cg_cap) : std::string("CG-1e-6")),
-          mode == NewmarkMode::Accurate ? "accurate" : "realtime",
-          threads, s.num_dofs(), mesh.num_elements(), peak - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z()};
+          mode == NewmarkMode::Accurate ? "accurate"
+          : tangent_reach > 0           ? fmt::format("rt-K{:g}", tangent_reach)
+                                        : std::string("realtime"),
+          threads, s.num_dofs(), mesh.num_elements(), peak - heap0, ms[ms.size() / 2], ms.front(), ms.back(), newton / n, lin / n, s.displacement(tip).z(),
+          kept / n};
 }
 
 }  // namespace
@@ -182,6 +193,7 @@ int main(int argc, char** argv) try {
   std::string csv = "bench_step.csv";
   bool quick = false;
   int cg_cap = 5;
+  Scalar tangent_reach = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
@@ -189,6 +201,7 @@ int main(int argc, char** argv) try {
     else if (i + 1 < argc && a == "--msh") msh = split(argv[++i]);
     else if (i + 1 < argc && a == "--csv") csv = argv[++i];
     else if (i + 1 < argc && a == "--cg-cap") cg_cap = std::stoi(argv[++i]);
+    else if (i + 1 < argc && a == "--tangent-reach") tangent_reach = std::stod(argv[++i]);
     else if (i + 1 < argc && a == "--after") {
       after_seconds = std::stod(argv[++i]);
       if (!(after_seconds >= 0 && after_seconds <= 1e3)) fail<InvalidArgument>("--after {}: give seconds in [0, 1000]", after_seconds);
@@ -205,24 +218,25 @@ int main(int argc, char** argv) try {
   }
   std::ofstream out(csv);
   out << "scene,element,model,solver,mode,threads,dofs,elements,peak_heap_mb,median_ms,min_ms,max_ms,newton_per_step,"
-         "linear_per_step,tip_uz_t1,realtime_vs_accurate\n";
-  fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7} {:>10} {:>9} {:>9} {:>7} {:>8} {:>10} {:>9}\n", "scene", "elem",
-             "model", "solver", "mode", "thr", "dofs", "peak MB", "median ms", "min ms", "max ms", "Newton", "lin.it",
-             "tip uz(1s)", "rt error");
+         "linear_per_step,tip_uz_t1,realtime_vs_accurate,tangents_kept\n";
+  fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7} {:>10} {:>9} {:>9} {:>7} {:>8} {:>10} {:>9} {:>5}\n", "scene",
+             "elem", "model", "solver", "mode", "thr", "dofs", "peak MB", "median ms", "min ms", "max ms", "Newton",
+             "lin.it", "tip uz(1s)", "rt error", "kept");
   std::map<std::string, Scalar> accurate_tip;  // scene/element/model/threads -> tip of the accurate CG row
   std::vector<Row> rows;
   auto emit = [&](const Row& r) {
     const std::string key = fmt::format("{}/{}/{}/{}", r.scene, r.element, r.model, r.threads);
     if (r.mode == "accurate" && r.solver != direct_solver_name(DirectSolver::Auto)) accurate_tip[key] = r.tip_uz;
     std::string rt_error;
-    if (r.mode == "realtime" && accurate_tip.count(key))
+    if (r.mode != "accurate" && accurate_tip.count(key))
       rt_error = fmt::format("{:.2e}", std::abs(r.tip_uz - accurate_tip[key]) / std::abs(accurate_tip[key]));
-    fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7.1f} {:>10.3f} {:>9.3f} {:>9.3f} {:>7.2f} {:>8.1f} {:>10.5f} {:>9}\n",
+    const std::string kept = r.mode.starts_with("rt-K") ? fmt::format("{:.2f}", r.kept) : std::string();
+    fmt::print("{:9} {:6} {:22} {:8} {:9} {:>3} {:>7} {:>7.1f} {:>10.3f} {:>9.3f} {:>9.3f} {:>7.2f} {:>8.1f} {:>10.5f} {:>9} {:>5}\n",
                r.scene, r.element, r.model, r.solver, r.mode, r.threads, r.dofs, r.heap_mb, r.median_ms, r.min_ms,
-               r.max_ms, r.newton, r.linear, r.tip_uz, rt_error);
-    out << fmt::format("{},{},{},{},{},{},{},{},{:.1f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{:.9g},{}\n", r.scene, r.element,
+               r.max_ms, r.newton, r.linear, r.tip_uz, rt_error, kept);
+    out << fmt::format("{},{},{},{},{},{},{},{},{:.1f},{:.6f},{:.6f},{:.6f},{:.3f},{:.3f},{:.9g},{},{}\n", r.scene, r.element,
                        r.model, r.solver, r.mode, r.threads, r.dofs, r.elements, r.heap_mb, r.median_ms, r.min_ms,
-                       r.max_ms, r.newton, r.linear, r.tip_uz, rt_error);
+                       r.max_ms, r.newton, r.linear, r.tip_uz, rt_error, kept);
     out.flush();
     std::fflush(stdout);  // progress is visible when the table is redirected to a file
     rows.push_back(r);
@@ -244,6 +258,7 @@ int main(int argc, char** argv) try {
         emit(measure<E, Corotational>(scene, CG, accurate, t));
         if (!quick) emit(measure<E, Corotational>(scene, CG, realtime, t));
         if (!quick && cg_cap > 0) emit(measure<E, Corotational>(scene, CG, realtime, t, true, cg_cap));
+        if (!quick && tangent_reach > 0) emit(measure<E, Corotational>(scene, CG, realtime, t, true, 0, tangent_reach));
         if (direct_ok && !quick) emit(measure<E, Corotational>(scene, LDLT, accurate, t));
       }
       if (want("corotational-warped")) {
@@ -254,10 +269,13 @@ int main(int argc, char** argv) try {
         emit(measure<E, CorotationalPerElement>(scene, CG, accurate, t));
         if (!quick) emit(measure<E, CorotationalPerElement>(scene, CG, realtime, t));
         if (!quick && cg_cap > 0) emit(measure<E, CorotationalPerElement>(scene, CG, realtime, t, true, cg_cap));
+        if (!quick && tangent_reach > 0)
+          emit(measure<E, CorotationalPerElement>(scene, CG, realtime, t, true, 0, tangent_reach));
       }
       if (want("neohookean")) {
         emit(measure<E, NeoHookean>(scene, CG, accurate, t));
         if (!quick) emit(measure<E, NeoHookean>(scene, CG, realtime, t));
+        if (!quick && tangent_reach > 0) emit(measure<E, NeoHookean>(scene, CG, realtime, t, true, 0, tangent_reach));
       }
       if (!quick && want("stable-neohookean")) emit(measure<E, StableNeoHookean>(scene, CG, accurate, t));
       if (want("plastic")) {  // seed 000: the plastic policies on the elastic scene

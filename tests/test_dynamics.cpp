@@ -15,12 +15,21 @@
 //  - a real-time step beyond its linearisation's reach (a twisted tube let go) is redone as an
 //    accurate step, and the run goes on; without that the linearised release inverts elements;
 //    largest_edge_change, the reach's measure, on a rigid turn and a stretch;
+//  - a real-time step keeps its tangent exactly while the body is within NewmarkSettings::
+//    tangent_reach of the kept tangent's state, and the motion stays within a bound of the one
+//    assembling a fresh tangent every step (Hex8, Tet4, Tet10; per-element and per-point
+//    corotational and Neo-Hookean; both mass kinds; a bar swinging under gravity and one
+//    spinning half a turn); plastic flow and an accurate step in between make it assemble
+//    afresh, the direct solver's kept factorisation gives CG's motion, a cut body keeps nothing,
+//    Linear keeps nothing, a bad reach is refused;
 //  - statics continue from the current state and load;
 //  - the equation of motion (solver/equation_of_motion.hpp), the one residual of the steps,
 //    statics and the reactions, against its formula with Eigen's sparse products; a constant
 //    tangent is assembled once and f_int = K u.
 #include "catch.hpp"
 
+#include <plastifem/cutting.hpp>
+#include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -477,6 +486,259 @@ TEST_CASE("largest_edge_change: a rigid turn moves an edge by its chord, a stret
   Vector bad = u0;
   bad[5] = std::numeric_limits<Scalar>::quiet_NaN();
   CHECK(std::isnan(largest_edge_change(mesh, u0, bad, 1)));
+}
+
+namespace {
+
+/// A real-time run (accurate with `accurate`) of the 8 x 2 x 2 bar swinging under gravity from
+/// its clamped end, or of the free, stress-free bar spinning at 2 rad/s about z, with
+/// NewmarkSettings::tangent_reach = `reach`: the displacement after each step, and whether the
+/// step kept its tangent.
+struct ReuseRun {
+  std::vector<Vector> u;
+  std::vector<int> kept;
+};
+template <FiniteElement E, class Model>
+ReuseRun reuse_run(const Mesh<E>& mesh, Scalar reach, MassKind mass, bool spin, bool accurate = false) {
+  SolverSettings s;
+  s.newmark.mode = accurate ? NewmarkMode::Accurate : NewmarkMode::RealTime;
+  s.newmark.tangent_reach = reach;
+  s.mass = mass;
+  s.linear.tolerance = 1e-10;  // the tangent's effect is compared, not CG's tolerance
+  s.newton.residual_tolerance = 1e-10;
+  Solver<E, Model> solver(mesh, soft, s);
+  if (spin) {
+    const Vec3 c = mesh.nodes().rowwise().mean();
+    Vector v(solver.num_dofs());
+    for (Index i = 0; i < mesh.num_nodes(); ++i) v.template segment<3>(3 * i) = Vec3(0, 0, 2).cross(mesh.node(i) - c);
+    solver.set_state(Vector::Zero(solver.num_dofs()), v);
+  } else {
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(Vec3(0, 0, -9.81));
+  }
+  ReuseRun r;
+  for (int k = 0; k < (spin ? 157 : 100); ++k) {  // half a turn; 1 s of the swing
+    r.kept.push_back(solver.step(0.01).tangents_kept);
+    r.u.push_back(solver.displacement());
+  }
+  return r;
+}
+
+/// The largest distance between two runs' displacements, relative to the largest of `b`'s.
+Scalar run_distance(const ReuseRun& a, const ReuseRun& b) {
+  Scalar distance = 0, largest = 0;
+  for (size_t k = 0; k < a.u.size(); ++k) {
+    distance = std::max(distance, (a.u[k] - b.u[k]).lpNorm<Eigen::Infinity>());
+    largest = std::max(largest, b.u[k].lpNorm<Eigen::Infinity>());
+  }
+  return distance / largest;
+}
+
+/// tangent_reach on one composition and scene. Checks the rule (a step keeps its tangent exactly
+/// when every edge ends within the reach of the kept tangent's state) and that both ways
+/// happen; returns the run's distance from the one assembling a fresh tangent every step, and
+/// sets `linearisation` to that one's distance from accurate (Newton) steps.
+template <FiniteElement E, class Model>
+Scalar check_tangent_reuse(MassKind mass, bool spin, Scalar reach, Scalar& linearisation) {
+  const Mesh<E> mesh = bar_mesh<E>(8, 2, 2);
+  const ReuseRun fresh = reuse_run<E, Model>(mesh, 0, mass, spin);
+  const ReuseRun reused = reuse_run<E, Model>(mesh, reach, mass, spin);
+  linearisation = run_distance(fresh, reuse_run<E, Model>(mesh, 0, mass, spin, true));
+  // The rule, replayed from the outside: the first step assembles at u = 0 (its start); a step
+  // that keeps its tangent ends within the reach of the last assembly's state, one that does not
+  // ends beyond it and assembles there.
+  Vector assembled = Vector::Zero(fresh.u[0].size());
+  int kept = 0;
+  const int steps = static_cast<int>(fresh.u.size());
+  for (int k = 0; k < steps; ++k) {
+    CHECK(fresh.kept[k] == 0);
+    const Scalar change = largest_edge_change(mesh, assembled, reused.u[k], 1);
+    if (reused.kept[k]) {
+      CHECK(change <= reach);
+      ++kept;
+    } else {
+      CHECK(change > reach);
+      assembled = reused.u[k];
+    }
+  }
+  const Scalar distance = run_distance(reused, fresh);
+  fmt::print("tangent reach {} {:5} {:22} {:10} {:7}: {:3} of {} steps kept the tangent; |u - u_fresh| <= {:.2e} of "
+             "the largest |u| (real time's own distance from accurate steps {:.2e})\n",
+             reach, E::name, Model::name, mass == MassKind::Lumped ? "lumped" : "consistent", spin ? "spin" : "gravity",
+             kept, steps, distance, linearisation);
+  CHECK(kept > 0);
+  CHECK(kept < steps);
+  CHECK(distance > 0);  // the kept steps did solve with an older tangent
+  return distance;
+}
+
+}  // namespace
+
+TEST_CASE("real time, tangent reach: the tangent is kept exactly while every edge is within the reach, and the "
+          "motion stays within a bound of the fresh-tangent one",
+          "[dynamics][realtime][tangent]") {
+  // A kept tangent changes only the Jacobian of the one linearised solve (the forces stay
+  // exact): the step's increment changes by about A^-1 (K - K_kept) du, A = M / (beta dt^2) + K,
+  // where K - K_kept grows with the edges' change since the kept state (a corotational
+  // K_e = R K0 R^T turns with R, an edge turned by theta moves by its chord 2 sin(theta / 2)),
+  // and the increment du does too: the run's distance from the fresh-tangent run grows like
+  // reach^2. Measured on these scenes at reaches 0.005-0.02: 0.3-2.9 reach^2 (the most:
+  // Tet10 Corotational at 0.02, Tet4 Neo-Hookean at 0.01), hence the bound 5 reach^2.
+  Scalar linearisation = 0;
+  for (const Scalar reach : {0.01, 0.02}) {
+    const Scalar bound = 5 * reach * reach;
+    CHECK(check_tangent_reuse<Hex8, CorotationalPerElement>(MassKind::Consistent, false, reach, linearisation) < bound);
+    CHECK(check_tangent_reuse<Hex8, CorotationalPerElement>(MassKind::Lumped, false, reach, linearisation) < bound);
+    CHECK(check_tangent_reuse<Hex8, Corotational>(MassKind::Consistent, false, reach, linearisation) < bound);
+    CHECK(check_tangent_reuse<Tet4, NeoHookean>(MassKind::Lumped, false, reach, linearisation) < bound);
+    CHECK(check_tangent_reuse<Tet10, Corotational>(MassKind::Consistent, false, reach, linearisation) < bound);
+  }
+  // A large rotation: the stress-free bar spun half a turn, 0.02 rad per step, so a reach
+  // below 0.02 assembles every step. At 0.03 every other step keeps a tangent turned by one
+  // step's rotation from the body: the run then moves from the fresh-tangent one by less than
+  // the linearisation's own error on a spin (its steps move the nodes along chords).
+  CHECK(check_tangent_reuse<Hex8, CorotationalPerElement>(MassKind::Consistent, true, 0.03, linearisation) <
+        linearisation);
+}
+
+TEST_CASE("real time, tangent reach: plastic flow assembles the tangent afresh, accurate steps ignore the reach",
+          "[dynamics][realtime][tangent][plastic]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(8, 2, 2);
+  PlasticParams flowing;
+  flowing.yield_stress = 100;  // the swing's bending stress near the clamp is ~10 times that
+  SolverSettings s;
+  s.newmark.mode = NewmarkMode::RealTime;
+  s.newmark.tangent_reach = 0.02;
+  Solver<Hex8, CorotationalPerElement, VertexBlended> solver(mesh, soft, s, flowing);
+  solver.fix(mesh.node_set("xmin"));
+  solver.add_gravity(Vec3(0, 0, -9.81));
+  // The rule replayed, with plastic flow: a step after one whose update moved rest shapes finds
+  // its tangent stale (other element data) and assembles it at its start, u_n.
+  Vector assembled = Vector::Zero(solver.num_dofs()), previous = assembled;
+  int kept = 0, flowed = 0, kept_after_flow = 0;
+  bool rest_moved = false;
+  for (int k = 0; k < 100; ++k) {
+    if (rest_moved) assembled = previous;
+    const StepReport r = solver.step(0.01);
+    const Scalar change = largest_edge_change(mesh, assembled, solver.displacement(), 1);
+    if (r.tangents_kept) {
+      CHECK(change <= 0.02);
+      ++kept;
+      kept_after_flow += rest_moved;
+    } else {
+      CHECK(change > 0.02);
+      assembled = solver.displacement();
+    }
+    rest_moved = r.plastic.elements_changed > 0;
+    flowed += rest_moved;
+    previous = solver.displacement();
+  }
+  fmt::print("tangent reach with plastic flow: {} of 100 steps kept the tangent, {} of them right after a flow; {} "
+             "steps moved rest shapes\n",
+             kept, kept_after_flow, flowed);
+  CHECK(flowed > 10);
+  CHECK(kept > 10);
+  CHECK(kept_after_flow > 0);  // the case the replay's first line is about happens
+
+  // Accurate steps assemble their own tangent: the reach changes nothing, bit for bit.
+  auto accurate = [&](Scalar reach) {
+    SolverSettings a;
+    a.newmark.tangent_reach = reach;
+    Solver<Hex8, Corotational> acc(mesh, soft, a);
+    acc.fix(mesh.node_set("xmin"));
+    acc.add_gravity(Vec3(0, 0, -9.81));
+    for (int k = 0; k < 10; ++k) CHECK(acc.step(0.01).tangents_kept == 0);
+    return Vector(acc.displacement());
+  };
+  CHECK(accurate(0.02) == accurate(0));
+}
+
+TEST_CASE("real time, tangent reach: the direct solver's kept factorisation, an accurate step between, a cut body",
+          "[dynamics][realtime][tangent]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(8, 2, 2);
+  // The same run with CG to 1e-10 and with CHOLMOD / LDLT, which reuses its factorisation when
+  // the step keeps A; at step 50 one accurate step, after which the next real-time step
+  // assembles at its start. Returns the displacements; checks the rule around the accurate step.
+  auto run = [&](LinearSolverKind kind) {
+    SolverSettings s;
+    s.newmark.mode = NewmarkMode::RealTime;
+    s.newmark.tangent_reach = 0.02;
+    s.linear.kind = kind;
+    s.linear.tolerance = 1e-10;
+    Solver<Hex8, CorotationalPerElement> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(Vec3(0, 0, -9.81));
+    std::vector<Vector> u;
+    Vector assembled = Vector::Zero(solver.num_dofs());
+    int kept = 0;
+    for (int k = 0; k < 100; ++k) {
+      SolverSettings now = s;
+      if (k == 50) now.newmark.mode = NewmarkMode::Accurate;
+      if (k == 50 || k == 51) solver.set_settings(now);
+      const Vector before = solver.displacement();
+      const StepReport r = solver.step(0.01);
+      if (k == 50) {
+        CHECK(r.tangents_kept == 0);
+      } else {
+        if (k == 51) assembled = before;  // the accurate step's K is not a real-time one's
+        const Scalar change = largest_edge_change(mesh, assembled, solver.displacement(), 1);
+        if (r.tangents_kept) {
+          CHECK(change <= 0.02);
+        } else {
+          CHECK(change > 0.02);
+          assembled = solver.displacement();
+        }
+      }
+      kept += r.tangents_kept;
+      u.push_back(solver.displacement());
+    }
+    CHECK(kept > 50);
+    return u;
+  };
+  const auto cg = run(LinearSolverKind::ConjugateGradient), direct = run(LinearSolverKind::Direct);
+  Scalar distance = 0;
+  for (size_t k = 0; k < cg.size(); ++k) distance = std::max(distance, (cg[k] - direct[k]).lpNorm<Eigen::Infinity>());
+  // CG's 1e-10 relative residual on a matrix of condition ~10^2-10^3 (mass-dominated), carried
+  // over 100 steps: 1e-8 of the ~1 mm swing, where a factorisation of another step's matrix
+  // (a skipped refactorisation gone wrong) would move it by the reach's 1e-4 to 1e-3.
+  CHECK(distance < 1e-8 * cg.back().lpNorm<Eigen::Infinity>());
+
+  // A cut body assembles its tangent every step (the edge measure does not see its pieces move
+  // apart); before the cut it keeps it as any body.
+  SolverSettings s;
+  s.newmark.mode = NewmarkMode::RealTime;
+  s.newmark.tangent_reach = 0.02;
+  Solver<Hex8, Corotational, NoPlasticity, Heaviside> cut(mesh, soft, s);
+  cut.fix(mesh.node_set("xmin"));
+  cut.add_gravity(Vec3(0, 0, -9.81));
+  int kept_before = 0, kept_after = 0;
+  for (int k = 0; k < 40; ++k) kept_before += cut.step(0.01).tangents_kept;
+  cut.cut(CutPlane(Vec3(5.5, 0, 0), Vec3(1, 0, 0)));
+  for (int k = 0; k < 40; ++k) kept_after += cut.step(0.01).tangents_kept;
+  CHECK(kept_before > 10);
+  CHECK(kept_after == 0);
+}
+
+TEST_CASE("real time, tangent reach: a constant tangent never changes, a bad reach is refused", "[dynamics][realtime][tangent]") {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  auto run = [&](Scalar reach) {
+    SolverSettings s;
+    s.newmark.mode = NewmarkMode::RealTime;
+    s.newmark.tangent_reach = reach;
+    Solver<Hex8, Linear> solver(mesh, soft, s);
+    solver.fix(mesh.node_set("xmin"));
+    solver.add_gravity(Vec3(0, 0, -9.81));
+    int kept = 0;
+    for (int k = 0; k < 20; ++k) kept += solver.step(0.01).tangents_kept;
+    CHECK(kept == 0);  // Linear's K is assembled once per rest shape anyway: nothing to keep
+    return Vector(solver.displacement());
+  };
+  CHECK(run(0.05) == run(0));  // bit for bit
+  for (const Scalar bad : {-0.1, std::numeric_limits<Scalar>::quiet_NaN(), std::numeric_limits<Scalar>::infinity()}) {
+    SolverSettings s;
+    s.newmark.tangent_reach = bad;
+    CHECK_THROWS_AS((Solver<Hex8, Corotational>(mesh, soft, s)), InvalidArgument);
+  }
 }
 
 TEST_CASE("statics continue from the current state and load", "[statics]") {

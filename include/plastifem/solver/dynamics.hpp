@@ -22,6 +22,22 @@
 //    can evaluate them (examples/vessel_twist). It is off by default: a released grasp rings at
 //    3-6 edge lengths per step in accurate steps too (fat_grasp), which Corotational's linearised
 //    steps take at a fixed cost.
+//    With NewmarkSettings::tangent_reach set (opt-in), the evaluation at a step's end is of the
+//    forces only while no edge has changed by more than that fraction of its length since the
+//    state the tangent K was assembled at: the next step solves with that K (and, when undamped,
+//    with the matrix A as it was, and the direct solver's factorisation). Not in a cut body:
+//    the pieces' motion relative to each other is in the enriched dofs, which the edge measure
+//    does not see. The forces stay exact, so only the one
+//    solve's Jacobian is older; the step's increment changes by about A^-1 (K - K_kept) du,
+//    and a run moves from the fresh-tangent one by 0.3-2.9 reach^2 of its largest displacement
+//    (tests/test_dynamics.cpp: Hex8, Tet4, Tet10 bars swinging under gravity, reach 0.01 and
+//    0.02). On bar5760 (Hex8, 2 threads) a reach of 0.02 keeps 77% of the tangents and takes
+//    the step from 5.8 to 4.4 ms (CorotationalPerElement) and 10.6 to 5.6 ms (Corotational);
+//    docs/performance.md has the table. A body turning faster than the reach per step assembles
+//    every step; at a reach just above its turn per step the kept tangent lags a whole step's
+//    rotation (a bar spinning 0.02 rad per step, reach 0.03: 2.7% of its motion per element,
+//    against the linearisation's own 4.7%; 3.7% per point, against 1.6%), so keep the reach
+//    below the fastest rotation per step the scene expects.
 //
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
 // acceleration, unless the state's balances the current loads, constraints and inertia settings
@@ -101,10 +117,11 @@ class Dynamics {
   /// Sizes the scratch vectors for n dofs (no allocation in the step loop afterwards).
   void resize(Index n) {
     for (Vector* x : {&f_int_, &f_lin_, &f_ext_, &r_, &du_, &rhs_, &u_, &u_new_, &a_, &v_, &a_start_, &work_, &path_.u,
-                      &path_.v, &path_.a, &first_increment_, &history_})
+                      &path_.v, &path_.a, &first_increment_, &history_, &tangent_u_})
       x->setZero(n);
     equation_.resize(n);
     linearisation_ = {};
+    tangent_u_stamp_ = 0;
   }
 
   /// n -> trial by one step of dt; the trial state gets `serial`. Throws SolverError on failure.
@@ -409,6 +426,7 @@ class Dynamics {
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
       linearisation_ = Linearisation::at(p, n.serial, kind);
+      tangent_assembled_at(p, n.u);
     }
     if (nm.weighted()) weighted_history(p, n, nm, f_lin_);
     const auto coefficients = nm.matrix(st.rayleigh_mass, st.rayleigh_stiffness);
@@ -442,7 +460,12 @@ class Dynamics {
       else
         du_.setZero();
       p.system.zero_held(du_);
-      const bool same = Equation::form_matrix(p, cm, cd, false);
+      // A tangent kept from the last step (NewmarkSettings::tangent_reach) leaves A = cm M + K as
+      // that step formed it, and the direct solver its factorisation, unless damped (Kd moves
+      // every step) or written since (System::same_coefficients).
+      const bool current =
+          !constant_tangent && st.newmark.tangent_reach > 0 && cd == 0 && p.system.same_coefficients(cm, cd);
+      const bool same = Equation::form_matrix(p, cm, cd, current);
       return p.system.linear().solve(p.system.A, rhs_, du_, st.linear.tolerance, same);
     };
     linear_residual();
@@ -457,6 +480,7 @@ class Dynamics {
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
       linearisation_ = Linearisation::at(p, n.serial, kind);
+      tangent_assembled_at(p, n.u);
       linear_residual();
       lr = solve();
     }
@@ -468,9 +492,12 @@ class Dynamics {
     if (const Scalar reach = st.newmark.realtime_reach;
         std::isfinite(reach) && !(largest_edge_change(p.body.mesh(), n.u, u_, p.threads) <= reach))
       return redone(p, n, trial, dt, serial, t0, lr.iterations);
-    // The new state, evaluated: the check, the reported residual, and the next linearisation.
+    // The new state, evaluated: the check, the reported residual, and the next linearisation
+    // (its tangent kept while within NewmarkSettings::tangent_reach of the kept one's state).
     const TangentKind next_kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
-    const bool ok = equation_.internal_force(p, u_, f_int_, true, next_kind);
+    const bool keep_tangent = keeps_tangent(p, kind, next_kind);
+    const bool ok = equation_.internal_force(p, u_, f_int_, !keep_tangent, next_kind);
+    if (!keep_tangent) tangent_assembled_at(p, u_);
     if (!ok || !u_.allFinite())
       fail<SolverError>("real-time step at t = {}: the new state cannot be evaluated{}; the state is unchanged", t1,
                         where_invalid(p, u_));
@@ -486,6 +513,7 @@ class Dynamics {
     linearisation_ = Linearisation::at(p, serial, next_kind);  // the trial state's, if it is committed
     StepReport rep;
     rep.newton_iterations = 1;
+    rep.tangents_kept = keep_tangent;
     rep.linear_iterations = lr.iterations;
     rep.residual = rnorm;
     rep.relative_residual = rnorm / std::max(scale, Scalar(1e-30));
@@ -495,6 +523,26 @@ class Dynamics {
     rep.linear_relative_residual = lr.relative_residual;
     rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return rep;
+  }
+
+  /// Records that the system's K was just assembled at u (for NewmarkSettings::tangent_reach).
+  void tangent_assembled_at(const Parts& p, const Vector& u) {
+    if (!(p.settings.newmark.tangent_reach > 0) || constant_tangent) return;
+    tangent_u_ = u;
+    tangent_u_stamp_ = p.system.tangent_stamp();
+  }
+  /// Whether the step's end keeps the tangent of its linearisation (of the kind `kind`) for the
+  /// next step instead of assembling one at u_ (of the kind `next_kind`): reuse is on, that
+  /// tangent is the one recorded at tangent_u_ (nothing has assembled another since), and no
+  /// element edge has changed by more than tangent_reach of its length from there. A constant
+  /// tangent is never assembled again anyway. A cut body's pieces move apart in the enriched
+  /// dofs, which largest_edge_change does not read: its tangent is not kept.
+  bool keeps_tangent(const Parts& p, TangentKind kind, TangentKind next_kind) const {
+    const Scalar reach = p.settings.newmark.tangent_reach;
+    if (constant_tangent || !(reach > 0) || kind != next_kind || tangent_u_stamp_ != p.system.tangent_stamp() ||
+        p.body.has_cuts())
+      return false;
+    return largest_edge_change(p.body.mesh(), tangent_u_, u_, p.threads) <= reach;
   }
 
   /// The accurate step from the predictor, else from u_n. At huge time steps (stiffness-
@@ -546,6 +594,10 @@ class Dynamics {
     }
   };
   Linearisation linearisation_;
+  /// Where the system's K was last assembled by a real-time step, and that K's stamp (0: none
+  /// recorded); kept only with NewmarkSettings::tangent_reach.
+  Vector tangent_u_;
+  std::uint64_t tangent_u_stamp_ = 0;
 };
 
 }  // namespace plastifem

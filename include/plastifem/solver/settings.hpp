@@ -59,6 +59,17 @@ struct NewmarkSettings {
   /// model undefined for inverted elements (NeoHookean, MooneyRivlin) that is let go suddenly:
   /// solver/dynamics.hpp says why, with the figures.
   Scalar realtime_reach = unlimited_reach;
+  /// Real time's tangent reuse (opt-in; 0, the default, assembles K at every step's end): a
+  /// step keeps the tangent K its linearisation was assembled with, and evaluates only the
+  /// forces at its end, while no element edge has changed by more than this fraction of its
+  /// length since that tangent's state (the measure of realtime_reach, from that state rather
+  /// than over one step); then the tangent is assembled afresh. The forces stay exact, so the
+  /// step still balances the equation of motion up to the linear solve: only its Jacobian is
+  /// older, which changes the step's increment by about A^-1 (K - K_kept) du, small where the
+  /// Newmark matrix A = M / (beta dt^2) + K is mass-dominated. Not in a cut body (the measure
+  /// does not see its pieces' relative motion): there the tangent is assembled every step.
+  /// Counted in StepReport::tangents_kept; solver/dynamics.hpp gives the measured cost and error.
+  Scalar tangent_reach = 0;
 
   /// Chung and Hulbert's generalized-alpha (1993) with high-frequency spectral radius
   /// rho_inf in [0, 1]: second order, unconditionally stable, and the most dissipation of
@@ -68,7 +79,8 @@ struct NewmarkSettings {
   /// in one step. alpha_m = (2 rho - 1) / (rho + 1), alpha_f = rho / (rho + 1),
   /// gamma = 1/2 - alpha_m + alpha_f, beta = (1 - alpha_m + alpha_f)^2 / 4 (their eq. 25-26).
   /// Like hht(), it returns whole settings: assigning them replaces the mode and the reach too,
-  /// so pass those here (`s.newmark = NewmarkSettings::generalized_alpha(0.8, NewmarkMode::RealTime, 0.5)`).
+  /// so pass those here (`s.newmark = NewmarkSettings::generalized_alpha(0.8, NewmarkMode::RealTime, 0.5)`),
+  /// and set tangent_reach after.
   static NewmarkSettings generalized_alpha(Scalar rho_inf, NewmarkMode mode = NewmarkMode::Accurate,
                                            Scalar realtime_reach = unlimited_reach) {
     if (!(rho_inf >= 0 && rho_inf <= 1))
@@ -78,7 +90,8 @@ struct NewmarkSettings {
   }
   /// Hilber, Hughes and Taylor's alpha method (1977) with their alpha in [-1/3, 0] (Abaqus'
   /// parameter of the same name; its default is -0.05): alpha_m = 0, alpha_f = -alpha,
-  /// gamma = 1/2 - alpha, beta = (1 - alpha)^2 / 4.
+  /// gamma = 1/2 - alpha, beta = (1 - alpha)^2 / 4. Whole settings, as generalized_alpha():
+  /// set tangent_reach after.
   static NewmarkSettings hht(Scalar alpha, NewmarkMode mode = NewmarkMode::Accurate,
                              Scalar realtime_reach = unlimited_reach) {
     if (!(alpha >= -1.0 / 3.0 && alpha <= 0))
@@ -108,6 +121,7 @@ struct StepReport {
   int substeps = 1;              ///< dynamics: Newmark sub-steps used (> 1 after automatic step cutting)
   int predictor_retries = 0;     ///< dynamics: sub-steps redone from u_n after failing from the predictor
   int realtime_redone = 0;       ///< real time: sub-steps redone as accurate steps (NewmarkSettings::realtime_reach)
+  int tangents_kept = 0;         ///< real time: sub-steps that kept their linearisation's tangent (NewmarkSettings::tangent_reach)
   /// dynamics: constrained nodes whose prescribed path (or given velocity) jumps at the end of a
   /// (sub-)step, summed over sub-steps; their velocity and acceleration are the path's after
   /// the jump (Constraints::evaluate).
@@ -122,6 +136,7 @@ struct StepReport {
     linear_iterations += r.linear_iterations;
     predictor_retries += r.predictor_retries;
     realtime_redone += r.realtime_redone;
+    tangents_kept += r.tangents_kept;
     path_jumps += r.path_jumps;
     residual = r.residual;
     relative_residual = r.relative_residual;
@@ -190,6 +205,9 @@ inline void validate_settings(const SolverSettings& s) {
   if (!(nm.realtime_reach > 0))  // infinity allowed: never redone
     fail<InvalidArgument>("realtime_reach must be > 0 (infinity: never redo a real-time step), got {}",
                           nm.realtime_reach);
+  if (!(nm.tangent_reach >= 0) || !std::isfinite(nm.tangent_reach))  // 0: never kept
+    fail<InvalidArgument>("tangent_reach must be finite and >= 0 (0: assemble the tangent every step), got {}",
+                          nm.tangent_reach);
   if (s.max_step_cuts < 0 || s.max_step_cuts > 30)
     fail<InvalidArgument>("max_step_cuts must be in [0, 30] (2^30 sub-steps), got {}", s.max_step_cuts);
   if (s.threads < 0) fail<InvalidArgument>("threads must be >= 0 (0: OpenMP's default), got {}", s.threads);

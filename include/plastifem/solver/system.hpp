@@ -160,8 +160,10 @@ class System {
     blocks_.apply(A);
     coefficients_ = {0, 0, 0};
   }
-  /// For a constant tangent: whether A already holds cm M + K + cd Kd (then the direct solver
-  /// reuses its factorisation); records it as holding them after the call.
+  /// Whether A already holds cm M + K + cd Kd of the current K (then the direct solver reuses
+  /// its factorisation); records it as holding them after the call. For a constant tangent, and
+  /// for a real-time step whose tangent was kept (NewmarkSettings::tangent_reach; undamped only:
+  /// Kd's changes are not tracked here).
   bool same_coefficients(Scalar cm, Scalar cd) {
     const std::array<Scalar, 3> c{cm, cd, 1};
     const bool same = coefficients_ == c;
