@@ -3,7 +3,8 @@
 // EIGEN_RUNTIME_NO_MALLOC routes them through eigen_assert, counted here in any build type),
 // and a Newmark step after the warm-up steps (which size the scratch vectors, the CG work
 // space and the threaded product's buffers) must make none, for every elastic model, in
-// accurate and real-time mode, with one and two threads.
+// accurate and real-time mode (also keeping its tangent, NewmarkSettings::tangent_reach), with
+// one and two threads.
 #include <atomic>
 
 // The replaced operator new uses malloc, so freeing with free() is right; GCC cannot see the pair.
@@ -59,11 +60,18 @@ namespace {
 // Five warm-up steps, then ten steps in which neither operator new nor Eigen may allocate.
 template <class E, class Model>
 void check_steps_allocate_nothing(const Mesh<E>& mesh) {
-  for (NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime})
+  struct Mode {
+    NewmarkMode mode;
+    Scalar tangent_reach;
+    const char* name;
+  };
+  for (const Mode m : {Mode{NewmarkMode::Accurate, 0, "accurate"}, Mode{NewmarkMode::RealTime, 0, "real time"},
+                       Mode{NewmarkMode::RealTime, 0.02, "real time, tangent kept within 0.02"}})
     for (int threads : {1, 2}) {
-      CAPTURE(mode == NewmarkMode::Accurate ? "accurate" : "real time", threads);
+      CAPTURE(m.name, threads);
       SolverSettings st;
-      st.newmark.mode = mode;
+      st.newmark.mode = m.mode;
+      st.newmark.tangent_reach = m.tangent_reach;
       st.threads = threads;
       st.linear = {LinearSolverKind::ConjugateGradient, 1e-6, 1000};
       Solver<E, Model> s(mesh, Material{3000, 0.45, 1.0}, st);
@@ -72,9 +80,12 @@ void check_steps_allocate_nothing(const Mesh<E>& mesh) {
       for (int k = 0; k < 5; ++k) s.step(0.01);
       const long before = allocations.load(), eigen_before = eigen_asserts.load();
       Eigen::internal::set_is_malloc_allowed(false);
-      for (int k = 0; k < 10; ++k) s.step(0.01);
+      int kept = 0;
+      for (int k = 0; k < 10; ++k) kept += s.step(0.01).tangents_kept;
       Eigen::internal::set_is_malloc_allowed(true);
       CHECK(allocations.load() - before == 0);
+      // Both paths of the kept-tangent mode ran (except for Linear, whose K is constant).
+      if (m.tangent_reach > 0 && !Model::constant_tangent) CHECK((kept > 0 && kept < 10));
       CHECK(eigen_asserts.load() - eigen_before == 0);
       CHECK(s.displacement().allFinite());
     }
