@@ -534,6 +534,31 @@ Scalar run_distance(const ReuseRun& a, const ReuseRun& b) {
   return distance / largest;
 }
 
+/// NewmarkSettings::tangent_reach's rule, replayed from the outside: the tangent in use was
+/// assembled at `assembled`; a step that keeps it ends within the reach of that state, one that
+/// does not ends beyond it and assembles there. The first step assembles at u = 0 (its start).
+template <FiniteElement E>
+struct TangentRule {
+  const Mesh<E>& mesh;
+  Scalar reach;
+  Vector assembled;
+  int kept = 0;
+  TangentRule(const Mesh<E>& m, Scalar r, Index dofs) : mesh(m), reach(r), assembled(Vector::Zero(dofs)) {}
+  /// A step that assembled its linearisation at its start u_n (after plastic flow, an accurate step).
+  void assembled_at(const Vector& u) { assembled = u; }
+  /// Checks a step that ended at `u` and reported `step_kept`.
+  void check(bool step_kept, const Vector& u) {
+    const Scalar change = largest_edge_change(mesh, assembled, u, 1);
+    if (step_kept) {
+      CHECK(change <= reach);
+      ++kept;
+    } else {
+      CHECK(change > reach);
+      assembled = u;
+    }
+  }
+};
+
 /// tangent_reach on one composition and scene. Checks the rule (a step keeps its tangent exactly
 /// when every edge ends within the reach of the kept tangent's state) and that both ways
 /// happen; returns the run's distance from the one assembling a fresh tangent every step, and
@@ -544,23 +569,13 @@ Scalar check_tangent_reuse(MassKind mass, bool spin, Scalar reach, Scalar& linea
   const ReuseRun fresh = reuse_run<E, Model>(mesh, 0, mass, spin);
   const ReuseRun reused = reuse_run<E, Model>(mesh, reach, mass, spin);
   linearisation = run_distance(fresh, reuse_run<E, Model>(mesh, 0, mass, spin, true));
-  // The rule, replayed from the outside: the first step assembles at u = 0 (its start); a step
-  // that keeps its tangent ends within the reach of the last assembly's state, one that does not
-  // ends beyond it and assembles there.
-  Vector assembled = Vector::Zero(fresh.u[0].size());
-  int kept = 0;
+  TangentRule<E> rule(mesh, reach, fresh.u[0].size());
   const int steps = static_cast<int>(fresh.u.size());
   for (int k = 0; k < steps; ++k) {
     CHECK(fresh.kept[k] == 0);
-    const Scalar change = largest_edge_change(mesh, assembled, reused.u[k], 1);
-    if (reused.kept[k]) {
-      CHECK(change <= reach);
-      ++kept;
-    } else {
-      CHECK(change > reach);
-      assembled = reused.u[k];
-    }
+    rule.check(reused.kept[k], reused.u[k]);
   }
+  const int kept = rule.kept;
   const Scalar distance = run_distance(reused, fresh);
   fmt::print("tangent reach {} {:5} {:22} {:10} {:7}: {:3} of {} steps kept the tangent; |u - u_fresh| <= {:.2e} of "
              "the largest |u| (real time's own distance from accurate steps {:.2e})\n",
@@ -614,30 +629,24 @@ TEST_CASE("real time, tangent reach: plastic flow assembles the tangent afresh, 
   solver.add_gravity(Vec3(0, 0, -9.81));
   // The rule replayed, with plastic flow: a step after one whose update moved rest shapes finds
   // its tangent stale (other element data) and assembles it at its start, u_n.
-  Vector assembled = Vector::Zero(solver.num_dofs()), previous = assembled;
-  int kept = 0, flowed = 0, kept_after_flow = 0;
+  TangentRule<Hex8> rule(mesh, 0.02, solver.num_dofs());
+  int flowed = 0, kept_after_flow = 0;
   bool rest_moved = false;
+  Vector previous = rule.assembled;
   for (int k = 0; k < 100; ++k) {
-    if (rest_moved) assembled = previous;
+    if (rest_moved) rule.assembled_at(previous);
     const StepReport r = solver.step(0.01);
-    const Scalar change = largest_edge_change(mesh, assembled, solver.displacement(), 1);
-    if (r.tangents_kept) {
-      CHECK(change <= 0.02);
-      ++kept;
-      kept_after_flow += rest_moved;
-    } else {
-      CHECK(change > 0.02);
-      assembled = solver.displacement();
-    }
+    rule.check(r.tangents_kept, solver.displacement());
+    kept_after_flow += rest_moved && r.tangents_kept;
     rest_moved = r.plastic.elements_changed > 0;
     flowed += rest_moved;
     previous = solver.displacement();
   }
   fmt::print("tangent reach with plastic flow: {} of 100 steps kept the tangent, {} of them right after a flow; {} "
              "steps moved rest shapes\n",
-             kept, kept_after_flow, flowed);
+             rule.kept, kept_after_flow, flowed);
   CHECK(flowed > 10);
-  CHECK(kept > 10);
+  CHECK(rule.kept > 10);
   CHECK(kept_after_flow > 0);  // the case the replay's first line is about happens
 
   // Accurate steps assemble their own tangent: the reach changes nothing, bit for bit.
@@ -669,8 +678,7 @@ TEST_CASE("real time, tangent reach: the direct solver's kept factorisation, an 
     solver.fix(mesh.node_set("xmin"));
     solver.add_gravity(Vec3(0, 0, -9.81));
     std::vector<Vector> u;
-    Vector assembled = Vector::Zero(solver.num_dofs());
-    int kept = 0;
+    TangentRule<Hex8> rule(mesh, 0.02, solver.num_dofs());
     for (int k = 0; k < 100; ++k) {
       SolverSettings now = s;
       if (k == 50) now.newmark.mode = NewmarkMode::Accurate;
@@ -680,19 +688,12 @@ TEST_CASE("real time, tangent reach: the direct solver's kept factorisation, an 
       if (k == 50) {
         CHECK(r.tangents_kept == 0);
       } else {
-        if (k == 51) assembled = before;  // the accurate step's K is not a real-time one's
-        const Scalar change = largest_edge_change(mesh, assembled, solver.displacement(), 1);
-        if (r.tangents_kept) {
-          CHECK(change <= 0.02);
-        } else {
-          CHECK(change > 0.02);
-          assembled = solver.displacement();
-        }
+        if (k == 51) rule.assembled_at(before);  // the accurate step's K is not a real-time one's
+        rule.check(r.tangents_kept, solver.displacement());
       }
-      kept += r.tangents_kept;
       u.push_back(solver.displacement());
     }
-    CHECK(kept > 50);
+    CHECK(rule.kept > 50);
     return u;
   };
   const auto cg = run(LinearSolverKind::ConjugateGradient), direct = run(LinearSolverKind::Direct);

@@ -25,19 +25,18 @@
 //    With NewmarkSettings::tangent_reach set (opt-in), the evaluation at a step's end is of the
 //    forces only while no edge has changed by more than that fraction of its length since the
 //    state the tangent K was assembled at: the next step solves with that K (and, when undamped,
-//    with the matrix A as it was, and the direct solver's factorisation). Not in a cut body:
-//    the pieces' motion relative to each other is in the enriched dofs, which the edge measure
-//    does not see. The forces stay exact, so only the one
-//    solve's Jacobian is older; the step's increment changes by about A^-1 (K - K_kept) du,
-//    and a run moves from the fresh-tangent one by 0.3-2.9 reach^2 of its largest displacement
-//    (tests/test_dynamics.cpp: Hex8, Tet4, Tet10 bars swinging under gravity, reach 0.01 and
-//    0.02). On bar5760 (Hex8, 2 threads) a reach of 0.02 keeps 77% of the tangents and takes
-//    the step from 5.8 to 4.4 ms (CorotationalPerElement) and 10.6 to 5.6 ms (Corotational);
-//    docs/performance.md has the table. A body turning faster than the reach per step assembles
-//    every step; at a reach just above its turn per step the kept tangent lags a whole step's
-//    rotation (a bar spinning 0.02 rad per step, reach 0.03: 2.7% of its motion per element,
-//    against the linearisation's own 4.7%; 3.7% per point, against 1.6%), so keep the reach
-//    below the fastest rotation per step the scene expects.
+//    with the matrix A as it was, and the direct solver's factorisation). Not in a cut body: the
+//    pieces' motion relative to each other is in the enriched dofs, which the edge measure does
+//    not see. The forces stay exact, so only the one solve's Jacobian is older; the step's
+//    increment changes by about A^-1 (K - K_kept) du, and a run moves from the fresh-tangent one
+//    by 0.3-2.9 reach^2 of its largest displacement (tests/test_dynamics.cpp: Hex8, Tet4, Tet10
+//    bars swinging under gravity, reach 0.01 and 0.02). On bar5760 (Hex8, 2 threads) a reach of
+//    0.02 keeps 77% of the tangents and takes the step from 5.8 to 4.4 ms (CorotationalPerElement)
+//    and 10.6 to 5.6 ms (Corotational); docs/performance.md has the table. A body turning faster
+//    than the reach per step assembles every step; at a reach just above its turn per step the
+//    kept tangent lags a whole step's rotation (a bar spinning 0.02 rad per step, reach 0.03: 2.7%
+//    of its motion per element, against the linearisation's own 4.7%; 3.7% per point, against
+//    1.6%), so keep the reach below the fastest rotation per step the scene expects.
 //
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
 // acceleration, unless the state's balances the current loads, constraints and inertia settings
@@ -463,8 +462,7 @@ class Dynamics {
       // A tangent kept from the last step (NewmarkSettings::tangent_reach) leaves A = cm M + K as
       // that step formed it, and the direct solver its factorisation, unless damped (Kd moves
       // every step) or written since (System::same_coefficients).
-      const bool current =
-          !constant_tangent && st.newmark.tangent_reach > 0 && cd == 0 && p.system.same_coefficients(cm, cd);
+      const bool current = keeps_tangents(st) && cd == 0 && p.system.same_coefficients(cm, cd);
       const bool same = Equation::form_matrix(p, cm, cd, current);
       return p.system.linear().solve(p.system.A, rhs_, du_, st.linear.tolerance, same);
     };
@@ -525,24 +523,26 @@ class Dynamics {
     return rep;
   }
 
+  /// Whether real-time steps may keep their tangent (NewmarkSettings::tangent_reach set). A
+  /// constant tangent is never assembled again anyway.
+  static bool keeps_tangents(const SolverSettings& st) { return !constant_tangent && st.newmark.tangent_reach > 0; }
   /// Records that the system's K was just assembled at u (for NewmarkSettings::tangent_reach).
   void tangent_assembled_at(const Parts& p, const Vector& u) {
-    if (!(p.settings.newmark.tangent_reach > 0) || constant_tangent) return;
+    if (!keeps_tangents(p.settings)) return;
     tangent_u_ = u;
     tangent_u_stamp_ = p.system.tangent_stamp();
   }
   /// Whether the step's end keeps the tangent of its linearisation (of the kind `kind`) for the
   /// next step instead of assembling one at u_ (of the kind `next_kind`): reuse is on, that
   /// tangent is the one recorded at tangent_u_ (nothing has assembled another since), and no
-  /// element edge has changed by more than tangent_reach of its length from there. A constant
-  /// tangent is never assembled again anyway. A cut body's pieces move apart in the enriched
-  /// dofs, which largest_edge_change does not read: its tangent is not kept.
+  /// element edge has changed by more than tangent_reach of its length from there. A cut
+  /// body's pieces move apart in the enriched dofs, which largest_edge_change does not read: its
+  /// tangent is not kept.
   bool keeps_tangent(const Parts& p, TangentKind kind, TangentKind next_kind) const {
-    const Scalar reach = p.settings.newmark.tangent_reach;
-    if (constant_tangent || !(reach > 0) || kind != next_kind || tangent_u_stamp_ != p.system.tangent_stamp() ||
+    if (!keeps_tangents(p.settings) || kind != next_kind || tangent_u_stamp_ != p.system.tangent_stamp() ||
         p.body.has_cuts())
       return false;
-    return largest_edge_change(p.body.mesh(), tangent_u_, u_, p.threads) <= reach;
+    return largest_edge_change(p.body.mesh(), tangent_u_, u_, p.threads) <= p.settings.newmark.tangent_reach;
   }
 
   /// The accurate step from the predictor, else from u_n. At huge time steps (stiffness-
