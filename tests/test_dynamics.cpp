@@ -14,18 +14,25 @@
 //    Neo-Hookean element) and reports the residual after its solve and whether CG converged;
 //  - a real-time step beyond its linearisation's reach (a twisted tube let go) is redone as an
 //    accurate step, and the run goes on; without that the linearised release inverts elements;
-//    largest_edge_change, the reach's measure, on a rigid turn and a stretch;
+//    largest_edge_change, the reach's measure, on a rigid turn and a stretch, and in a cut body
+//    on each piece's motion;
 //  - a real-time step keeps its tangent exactly while the body is within NewmarkSettings::
 //    tangent_reach of the kept tangent's state, and the motion stays within a bound of the one
 //    assembling a fresh tangent every step (Hex8, Tet4, Tet10; per-element and per-point
 //    corotational and Neo-Hookean; both mass kinds; a bar swinging under gravity and one
 //    spinning half a turn); plastic flow and an accurate step in between make it assemble
-//    afresh, the direct solver's kept factorisation gives CG's motion, a cut body keeps nothing,
-//    Linear keeps nothing, a bad reach is refused;
+//    afresh, the direct solver's kept factorisation gives CG's motion, a notched body keeps it
+//    by its pieces' motion, Linear keeps nothing, a bad reach is refused;
 //  - statics continue from the current state and load;
 //  - the equation of motion (solver/equation_of_motion.hpp), the one residual of the steps,
 //    statics and the reactions, against its formula with Eigen's sparse products; a constant
 //    tangent is assembled once and f_int = K u.
+
+// GCC 12 at -O3 reads the move of a load definition (a std::variant holding Eigen's fixed-size
+// vectors) in Loads::add as possibly uninitialised, in this file only (the equation-of-motion
+// test's gravity); the same code is checked for uninitialised use in the other tests.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
 #include "catch.hpp"
 
 #include <plastifem/cutting.hpp>
@@ -486,6 +493,33 @@ TEST_CASE("largest_edge_change: a rigid turn moves an edge by its chord, a stret
   Vector bad = u0;
   bad[5] = std::numeric_limits<Scalar>::quiet_NaN();
   CHECK(std::isnan(largest_edge_change(mesh, u0, bad, 1)));
+
+  // A cut body: the bar cut at x = 1.5 (Heaviside, psi = +-1 on the two sides). The cells at
+  // 1 < x < 2 are cut, all their nodes enriched; the cells beside them blend (their x = 1 or
+  // x = 2 nodes enriched). The same enriched displacement c at every enriched node moves each
+  // side of a cut cell rigidly by +-c, but stretches a blending cell's edges along x by |c|
+  // (unit cells): the measure is |c|, where the standard dofs alone see nothing.
+  Solver<Hex8, Corotational, NoPlasticity, Heaviside> cut(mesh, soft);
+  cut.cut(CutPlane(Vec3(1.5, 0, 0), Vec3(1, 0, 0)));
+  const Index standard = 3 * mesh.num_nodes(), all = cut.num_dofs();
+  REQUIRE(all > standard);
+  const Vector w0 = Vector::Random(all);
+  Vector opened = w0;
+  for (Index d = standard; d < all; d += 3) opened.segment<3>(d) += Vec3(0, 0, 0.1);
+  CHECK(largest_edge_change(mesh, w0, opened, 1) == 0);
+  CHECK(largest_edge_change(mesh, cut.enrichment(), w0, opened, 1) == Approx(0.1).epsilon(1e-12));
+  CHECK(largest_edge_change(mesh, cut.enrichment(), w0, opened, 2) ==
+        largest_edge_change(mesh, cut.enrichment(), w0, opened, 1));
+  // A translation of the standard dofs moves every piece whole; a stretch is seen as without a cut.
+  Vector translated = w0, pulled = w0;
+  for (Index i = 0; i < mesh.num_nodes(); ++i) {
+    translated.segment<3>(3 * i) += Vec3(0.3, -0.2, 0.1);
+    pulled.segment<3>(3 * i) += Vec3(0.07 * mesh.node(i).x(), 0, 0);
+  }
+  CHECK(largest_edge_change(mesh, cut.enrichment(), w0, translated, 1) == Approx(0).margin(1e-15));
+  CHECK(largest_edge_change(mesh, cut.enrichment(), w0, pulled, 1) == Approx(0.07).epsilon(1e-12));
+  opened[all - 1] = std::numeric_limits<Scalar>::quiet_NaN();
+  CHECK(std::isnan(largest_edge_change(mesh, cut.enrichment(), w0, opened, 1)));
 }
 
 namespace {
@@ -537,18 +571,22 @@ Scalar run_distance(const ReuseRun& a, const ReuseRun& b) {
 /// NewmarkSettings::tangent_reach's rule, replayed from the outside: the tangent in use was
 /// assembled at `assembled`; a step that keeps it ends within the reach of that state, one that
 /// does not ends beyond it and assembles there. The first step assembles at u = 0 (its start).
+/// In a cut body (`enrichment` given) the pieces' edges are measured by their own sides' motion.
 template <FiniteElement E>
 struct TangentRule {
   const Mesh<E>& mesh;
   Scalar reach;
   Vector assembled;
+  const Enrichment<E>* enrichment = nullptr;
   int kept = 0;
   TangentRule(const Mesh<E>& m, Scalar r, Index dofs) : mesh(m), reach(r), assembled(Vector::Zero(dofs)) {}
-  /// A step that assembled its linearisation at its start u_n (after plastic flow, an accurate step).
+  /// A step that assembled its linearisation at its start u_n (after plastic flow, an accurate
+  /// step, a cut).
   void assembled_at(const Vector& u) { assembled = u; }
   /// Checks a step that ended at `u` and reported `step_kept`.
   void check(bool step_kept, const Vector& u) {
-    const Scalar change = largest_edge_change(mesh, assembled, u, 1);
+    const Scalar change = enrichment ? largest_edge_change(mesh, *enrichment, assembled, u, 1)
+                                     : largest_edge_change(mesh, assembled, u, 1);
     if (step_kept) {
       CHECK(change <= reach);
       ++kept;
@@ -662,7 +700,7 @@ TEST_CASE("real time, tangent reach: plastic flow assembles the tangent afresh, 
   CHECK(accurate(0.02) == accurate(0));
 }
 
-TEST_CASE("real time, tangent reach: the direct solver's kept factorisation, an accurate step between, a cut body",
+TEST_CASE("real time, tangent reach: the direct solver's kept factorisation, an accurate step between, a notched body",
           "[dynamics][realtime][tangent]") {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(8, 2, 2);
   // The same run with CG to 1e-10 and with CHOLMOD / LDLT, which reuses its factorisation when
@@ -704,20 +742,55 @@ TEST_CASE("real time, tangent reach: the direct solver's kept factorisation, an 
   // (a skipped refactorisation gone wrong) would move it by the reach's 1e-4 to 1e-3.
   CHECK(distance < 1e-8 * cg.back().lpNorm<Eigen::Infinity>());
 
-  // A cut body assembles its tangent every step (the edge measure does not see its pieces move
-  // apart); before the cut it keeps it as any body.
-  SolverSettings s;
-  s.newmark.mode = NewmarkMode::RealTime;
-  s.newmark.tangent_reach = 0.02;
-  Solver<Hex8, Corotational, NoPlasticity, Heaviside> cut(mesh, soft, s);
-  cut.fix(mesh.node_set("xmin"));
-  cut.add_gravity(Vec3(0, 0, -9.81));
-  int kept_before = 0, kept_after = 0;
-  for (int k = 0; k < 40; ++k) kept_before += cut.step(0.01).tangents_kept;
-  cut.cut(CutPlane(Vec3(5.5, 0, 0), Vec3(1, 0, 0)));
-  for (int k = 0; k < 40; ++k) kept_after += cut.step(0.01).tangents_kept;
+  // A cut body keeps its tangent by the same rule, its cut elements' edges measured as each
+  // side moves them (the enriched dofs). At step 40 a notch is cut through the top half of the
+  // bar near the clamp, where bending opens it: the bar then swings down about the notch. The
+  // step after the cut assembles at its start (the dof map changed). Against the run assembling
+  // every step the motion stays within the first test case's bound: measured 1.5 reach^2.
+  // (Severed at x = 5.5 instead, the free end falls turning as it swung, 0.01-0.02 rad per step:
+  // a reach of 0.01 then assembles every step after the cut, and 0.02 keeps every other tangent,
+  // lagging a step's turn with nothing pulling the error back, as in the spin above: 14 reach^2,
+  // 2.3 times real time's own distance from accurate steps there.)
+  auto cut_run = [&](Scalar reach, int& kept_before, int& kept_after) {
+    SolverSettings s;
+    s.newmark.mode = NewmarkMode::RealTime;
+    s.newmark.tangent_reach = reach;
+    s.linear.tolerance = 1e-10;
+    Solver<Hex8, Corotational, NoPlasticity, Heaviside> cut(mesh, soft, s);
+    cut.fix(mesh.node_set("xmin"));
+    cut.add_gravity(Vec3(0, 0, -9.81));
+    TangentRule<Hex8> rule(mesh, reach, cut.num_dofs());
+    std::vector<Vector> u;
+    for (int k = 0; k < 100; ++k) {
+      if (k == 40) {
+        cut.cut(CutPatch(Vec3(2.5, -0.1, 2.1), Vec3(0, 2.2, 0), Vec3(0, 0, -1.1)));
+        rule.enrichment = &cut.enrichment();
+        rule.kept = 0;
+        rule.assembled_at(cut.displacement());
+      }
+      const StepReport r = cut.step(0.01);
+      if (reach > 0) rule.check(r.tangents_kept, cut.displacement());
+      if (k == 39) kept_before = rule.kept;
+      u.push_back(cut.displacement());
+    }
+    kept_after = rule.kept;
+    return u;
+  };
+  int kept_before = 0, kept_after = 0, fresh_before = 0, fresh_after = 0;
+  const auto kept_run = cut_run(0.02, kept_before, kept_after), fresh_run = cut_run(0, fresh_before, fresh_after);
+  Scalar cut_distance = 0, largest = 0;
+  for (size_t k = 40; k < kept_run.size(); ++k) {
+    cut_distance = std::max(cut_distance, (kept_run[k] - fresh_run[k]).lpNorm<Eigen::Infinity>());
+    largest = std::max(largest, fresh_run[k].lpNorm<Eigen::Infinity>());
+  }
+  fmt::print("tangent reach 0.02, notched bar: {} of 40 steps kept the tangent before the cut, {} of 60 after; |u - "
+             "u_fresh| <= {:.2e} of the largest |u| after the cut\n",
+             kept_before, kept_after, cut_distance / largest);
   CHECK(kept_before > 10);
-  CHECK(kept_after == 0);
+  CHECK(kept_after > 5);
+  CHECK(kept_after < 60);
+  CHECK(cut_distance > 0);
+  CHECK(cut_distance < 5 * 0.02 * 0.02 * largest);
 }
 
 TEST_CASE("real time, tangent reach: a constant tangent never changes, a bad reach is refused", "[dynamics][realtime][tangent]") {

@@ -15,28 +15,29 @@
 //    residual it reports is the true |r(u_{n+1})| after the solve. The check costs nothing per
 //    step: the assembly moved from the start of the next step to the end of this one.
 //    The linearisation holds for small increments: with NewmarkSettings::realtime_reach set, a
-//    step that changes some element edge by more than that fraction of its length is redone as
-//    an accurate step. A Neo-Hookean vessel twisted 90 degrees and let go needs it: the one
-//    linearised step after the release moves its end ring along chords (90 -> 12 degrees,
-//    accurate: -46), squashing the elements beside it so far that no later step, however cut,
-//    can evaluate them (examples/vessel_twist). It is off by default: a released grasp rings at
-//    3-6 edge lengths per step in accurate steps too (fat_grasp), which Corotational's linearised
-//    steps take at a fixed cost.
+//    step that changes some element edge (a cut body's pieces' edges included) by more than that
+//    fraction of its length is redone as an accurate step. A Neo-Hookean vessel twisted 90 degrees
+//    and let go needs it: the one linearised step after the release moves its end ring along
+//    chords (90 -> 12 degrees, accurate: -46), squashing the elements beside it so far that no
+//    later step, however cut, can evaluate them (examples/vessel_twist). It is off by default: a
+//    released grasp rings at 3-6 edge lengths per step in accurate steps too (fat_grasp), which
+//    Corotational's linearised steps take at a fixed cost.
 //    With NewmarkSettings::tangent_reach set (opt-in), the evaluation at a step's end is of the
 //    forces only while no edge has changed by more than that fraction of its length since the
 //    state the tangent K was assembled at: the next step solves with that K (and, when undamped,
-//    with the matrix A as it was, and the direct solver's factorisation). Not in a cut body: the
-//    pieces' motion relative to each other is in the enriched dofs, which the edge measure does
-//    not see. The forces stay exact, so only the one solve's Jacobian is older; the step's
-//    increment changes by about A^-1 (K - K_kept) du, and a run moves from the fresh-tangent one
-//    by 0.3-2.9 reach^2 of its largest displacement (tests/test_dynamics.cpp: Hex8, Tet4, Tet10
-//    bars swinging under gravity, reach 0.01 and 0.02). On bar5760 (Hex8, 2 threads) a reach of
-//    0.02 keeps 77% of the tangents and takes the step from 5.8 to 4.4 ms (CorotationalPerElement)
-//    and 10.6 to 5.6 ms (Corotational); docs/performance.md has the table. A body turning faster
-//    than the reach per step assembles every step; at a reach just above its turn per step the
-//    kept tangent lags a whole step's rotation (a bar spinning 0.02 rad per step, reach 0.03: 2.7%
-//    of its motion per element, against the linearisation's own 4.7%; 3.7% per point, against
-//    1.6%), so keep the reach below the fastest rotation per step the scene expects.
+//    with the matrix A as it was, and the direct solver's factorisation). In a cut body the
+//    measure reads each piece's own motion (the enriched dofs), so a cut opening or a piece
+//    turning away counts, and a piece falling away whole does not. The forces stay exact, so only
+//    the one solve's Jacobian is older; the step's increment changes by about A^-1 (K - K_kept)
+//    du, and a run moves from the fresh-tangent one by 0.3-2.9 reach^2 of its largest displacement
+//    (tests/test_dynamics.cpp: Hex8, Tet4, Tet10 bars swinging under gravity, reach 0.01 and
+//    0.02). On bar5760 (Hex8, 2 threads) a reach of 0.02 keeps 77% of the tangents and takes the
+//    step from 5.8 to 4.4 ms (CorotationalPerElement) and 10.6 to 5.6 ms (Corotational);
+//    docs/performance.md has the table. A body turning faster than the reach per step assembles
+//    every step; at a reach just above its turn per step the kept tangent lags a whole step's
+//    rotation (a bar spinning 0.02 rad per step, reach 0.03: 2.7% of its motion per element,
+//    against the linearisation's own 4.7%; 3.7% per point, against 1.6%), so keep the reach below
+//    the fastest rotation per step the scene expects.
 //
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
 // acceleration, unless the state's balances the current loads, constraints and inertia settings
@@ -71,37 +72,75 @@
 
 namespace plastifem {
 
-/// The largest change of an element edge from displacement u0 to u1, relative to its length:
-/// max over the corner-to-corner edges (E::edges) of |(u1 - u0)_j - (u1 - u0)_i| / |X_j - X_i|,
-/// read from the first 3 n dofs, the nodes' standard dofs: in a cut body the pieces' motion
-/// relative to each other (the enriched dofs: a cut opening, pieces turning apart) is not counted.
-/// For a displacement increment linear in X it is |dF e| on the edge's unit direction e.
-/// NaN if an increment is not finite. Each edge is visited once per element that has it.
-template <FiniteElement E>
-Scalar largest_edge_change(const Mesh<E>& mesh, const Vector& u0, const Vector& u1, int threads) {
-  constexpr Index chunks = 64;  // fixed, so the result does not depend on the thread count
+namespace detail {
+/// The largest value `raise(e, m)` raises m to over the elements (each call: m = max(m, element
+/// e's values)), a NaN kept; over a fixed number of chunks, so the result does not depend on
+/// the thread count. (A running maximum per chunk rather than one per element: its comparison
+/// is then nearly always false, a branch the CPU predicts; per element it took twice as long.)
+template <class Raise>
+Scalar largest_over_elements(Index ne, int threads, const Raise& raise) {
+  constexpr Index chunks = 64;
   std::array<Scalar, chunks> largest{};
-  const Index ne = mesh.num_elements();
   parallel_for(chunks, threads, [&](Index c) {
-    Scalar m = 0;  // the largest squared ratio in this chunk
+    Scalar m = 0;
     // 64-bit products: ne * 64 overflows an Index past 33 million elements.
     const auto first = static_cast<Index>(std::int64_t{ne} * c / chunks);
     const auto last = static_cast<Index>(std::int64_t{ne} * (c + 1) / chunks);
-    for (Index e = first; e < last; ++e) {
-      const auto& nodes = mesh.element(e);
-      for (const auto& [a, b] : E::edges) {
-        const Index i = nodes[a], j = nodes[b];
-        const Vec3 d = (u1.segment<3>(3 * j) - u0.segment<3>(3 * j)) - (u1.segment<3>(3 * i) - u0.segment<3>(3 * i));
-        const Scalar r = d.squaredNorm() / (mesh.node(j) - mesh.node(i)).squaredNorm();
-        if (r > m || std::isnan(r)) m = r;  // a NaN stays
-      }
-    }
+    for (Index e = first; e < last; ++e) raise(e, m);
     largest[c] = m;
   });
   Scalar m = 0;
   for (Scalar x : largest)
     if (x > m || std::isnan(x)) m = x;
-  return std::sqrt(m);
+  return m;
+}
+
+/// m raised to the squared change of each of element e's corner-to-corner edges (E::edges)
+/// when its nodes move by dU_a = `change(a)`, relative to the edge's squared length.
+template <FiniteElement E, class Change>
+void raise_to_edge_changes(const Mesh<E>& mesh, Index e, const Change& change, Scalar& m) {
+  const auto& nodes = mesh.element(e);
+  for (const auto& [a, b] : E::edges) {
+    const Scalar r = (change(b) - change(a)).squaredNorm() / (mesh.node(nodes[b]) - mesh.node(nodes[a])).squaredNorm();
+    if (r > m || std::isnan(r)) m = r;  // a NaN stays
+  }
+}
+}  // namespace detail
+
+/// The largest change of an element edge from displacement u0 to u1, relative to its length:
+/// max over the corner-to-corner edges (E::edges) of |(u1 - u0)_j - (u1 - u0)_i| / |X_j - X_i|,
+/// read from the first 3 n dofs, the nodes' standard dofs. For a displacement increment linear
+/// in X it is |dF e| on the edge's unit direction e. NaN if an increment is not finite. Each
+/// edge is visited once per element that has it. A cut body: the overload below.
+template <FiniteElement E>
+Scalar largest_edge_change(const Mesh<E>& mesh, const Vector& u0, const Vector& u1, int threads) {
+  return std::sqrt(detail::largest_over_elements(mesh.num_elements(), threads, [&](Index e, Scalar& m) {
+    const auto& nodes = mesh.element(e);
+    auto change = [&](int a) { return u1.segment<3>(3 * nodes[a]) - u0.segment<3>(3 * nodes[a]); };
+    detail::raise_to_edge_changes(mesh, e, change, m);
+  }));
+}
+
+/// The same in a body cut by `enrichment` (enrichment/enrichment.hpp): an enriched element's
+/// edges as each of its sides moves them, the nodes displaced by u_a + sum_k psi_k^s a_k over
+/// its enriched dofs (as enrichment/output.hpp draws its pieces). So a cut opening and pieces
+/// turning apart count, and a piece falling away whole does not.
+template <FiniteElement E, class EnrichmentT>
+Scalar largest_edge_change(const Mesh<E>& mesh, const EnrichmentT& enrichment, const Vector& u0, const Vector& u1,
+                           int threads) {
+  return std::sqrt(detail::largest_over_elements(mesh.num_elements(), threads, [&](Index e, Scalar& m) {
+    const auto& nodes = mesh.element(e);
+    ElementNodes<E> dU;
+    for (int a = 0; a < E::num_nodes; ++a) dU.col(a) = u1.segment<3>(3 * nodes[a]) - u0.segment<3>(3 * nodes[a]);
+    const auto* cut = enrichment.element(e);
+    for (int s = 0; s < (cut ? cut->num_sides : 1); ++s) {
+      ElementNodes<E> side = dU;
+      if (cut)
+        for (const auto& d : cut->enriched)
+          side.col(d.node) += d.psi[s] * (u1.segment<3>(3 * d.row) - u0.segment<3>(3 * d.row));
+      detail::raise_to_edge_changes(mesh, e, [&](int a) { return side.col(a); }, m);
+    }
+  }));
 }
 
 template <FiniteElement E, class Elastic, bool Enriched = false>
@@ -120,7 +159,7 @@ class Dynamics {
       x->setZero(n);
     equation_.resize(n);
     linearisation_ = {};
-    tangent_u_stamp_ = 0;
+    tangent_ = {};
   }
 
   /// n -> trial by one step of dt; the trial state gets `serial`. Throws SolverError on failure.
@@ -425,7 +464,7 @@ class Dynamics {
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
       linearisation_ = Linearisation::at(p, n.serial, kind);
-      tangent_assembled_at(p, n.u);
+      tangent_assembled_at(p, n.u, kind);
     }
     if (nm.weighted()) weighted_history(p, n, nm, f_lin_);
     const auto coefficients = nm.matrix(st.rayleigh_mass, st.rayleigh_stiffness);
@@ -478,7 +517,7 @@ class Dynamics {
         fail<SolverError>("real-time step at t = {}: the current state cannot be evaluated{}", t1,
                           where_invalid(p, n.u));
       linearisation_ = Linearisation::at(p, n.serial, kind);
-      tangent_assembled_at(p, n.u);
+      tangent_assembled_at(p, n.u, kind);
       linear_residual();
       lr = solve();
     }
@@ -488,14 +527,14 @@ class Dynamics {
     // redone as an accurate one from n.
     linearisation_ = {};  // the accurate redo or the evaluation below writes K
     if (const Scalar reach = st.newmark.realtime_reach;
-        std::isfinite(reach) && !(largest_edge_change(p.body.mesh(), n.u, u_, p.threads) <= reach))
+        std::isfinite(reach) && !(edge_change(p, n.u, u_) <= reach))
       return redone(p, n, trial, dt, serial, t0, lr.iterations);
     // The new state, evaluated: the check, the reported residual, and the next linearisation
     // (its tangent kept while within NewmarkSettings::tangent_reach of the kept one's state).
     const TangentKind next_kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
-    const bool keep_tangent = keeps_tangent(p, kind, next_kind);
+    const bool keep_tangent = keeps_tangent(p, next_kind, u_);
     const bool ok = equation_.internal_force(p, u_, f_int_, !keep_tangent, next_kind);
-    if (!keep_tangent) tangent_assembled_at(p, u_);
+    if (!keep_tangent) tangent_assembled_at(p, u_, next_kind);
     if (!ok || !u_.allFinite())
       fail<SolverError>("real-time step at t = {}: the new state cannot be evaluated{}; the state is unchanged", t1,
                         where_invalid(p, u_));
@@ -526,23 +565,25 @@ class Dynamics {
   /// Whether real-time steps may keep their tangent (NewmarkSettings::tangent_reach set). A
   /// constant tangent is never assembled again anyway.
   static bool keeps_tangents(const SolverSettings& st) { return !constant_tangent && st.newmark.tangent_reach > 0; }
-  /// Records that the system's K was just assembled at u (for NewmarkSettings::tangent_reach).
-  void tangent_assembled_at(const Parts& p, const Vector& u) {
+  /// Records that the system's K was just assembled at u, of kind `kind` (for
+  /// NewmarkSettings::tangent_reach).
+  void tangent_assembled_at(const Parts& p, const Vector& u, TangentKind kind) {
     if (!keeps_tangents(p.settings)) return;
     tangent_u_ = u;
-    tangent_u_stamp_ = p.system.tangent_stamp();
+    tangent_ = Linearisation::at(p, 0, kind);
   }
-  /// Whether the step's end keeps the tangent of its linearisation (of the kind `kind`) for the
-  /// next step instead of assembling one at u_ (of the kind `next_kind`): reuse is on, that
-  /// tangent is the one recorded at tangent_u_ (nothing has assembled another since), and no
-  /// element edge has changed by more than tangent_reach of its length from there. A cut
-  /// body's pieces move apart in the enriched dofs, which largest_edge_change does not read: its
-  /// tangent is not kept.
-  bool keeps_tangent(const Parts& p, TangentKind kind, TangentKind next_kind) const {
-    if (!keeps_tangents(p.settings) || kind != next_kind || tangent_u_stamp_ != p.system.tangent_stamp() ||
-        p.body.has_cuts())
-      return false;
-    return largest_edge_change(p.body.mesh(), tangent_u_, u_, p.threads) <= p.settings.newmark.tangent_reach;
+  /// largest_edge_change over the body: in a cut body each enriched element by its sides.
+  static Scalar edge_change(const Parts& p, const Vector& u0, const Vector& u1) {
+    if constexpr (Enriched) return largest_edge_change(p.body.mesh(), p.body.enrichment(), u0, u1, p.threads);
+    else return largest_edge_change(p.body.mesh(), u0, u1, p.threads);
+  }
+  /// Whether the system's K serves as the tangent of kind `kind` at u instead of one assembled
+  /// there: reuse is on, K is the one recorded at tangent_u_ (nothing has assembled another or
+  /// moved rest shapes since), and no element edge, a cut body's pieces' included, has changed
+  /// by more than tangent_reach of its length from there.
+  bool keeps_tangent(const Parts& p, TangentKind kind, const Vector& u) const {
+    return keeps_tangents(p.settings) && tangent_.tangent_of(p, kind) &&
+           edge_change(p, tangent_u_, u) <= p.settings.newmark.tangent_reach;
   }
 
   /// The accurate step from the predictor, else from u_n. At huge time steps (stiffness-
@@ -588,16 +629,18 @@ class Dynamics {
     static Linearisation at(const Parts& p, std::uint64_t state, TangentKind kind) {
       return {state, p.system.tangent_stamp(), p.body.data().epoch(), kind};
     }
-    bool of(const Parts& p, const StateT& n, TangentKind k) const {
-      return tangent != 0 && state == n.serial && tangent == p.system.tangent_stamp() &&
-             rest_shapes == p.body.data().epoch() && kind == k;
+    /// Whether the system's K is still this tangent, of kind k: nothing has assembled another
+    /// or moved rest shapes since.
+    bool tangent_of(const Parts& p, TangentKind k) const {
+      return tangent != 0 && tangent == p.system.tangent_stamp() && rest_shapes == p.body.data().epoch() && kind == k;
     }
+    bool of(const Parts& p, const StateT& n, TangentKind k) const { return state == n.serial && tangent_of(p, k); }
   };
   Linearisation linearisation_;
-  /// Where the system's K was last assembled by a real-time step, and that K's stamp (0: none
-  /// recorded); kept only with NewmarkSettings::tangent_reach.
+  /// The displacement a real-time step last assembled the system's K at, and that K (its state
+  /// unused); recorded only with NewmarkSettings::tangent_reach.
   Vector tangent_u_;
-  std::uint64_t tangent_u_stamp_ = 0;
+  Linearisation tangent_;
 };
 
 }  // namespace plastifem

@@ -51,8 +51,8 @@ struct NewmarkSettings {
   /// Set them through generalized_alpha() or hht() rather than by hand.
   Scalar alpha_m = 0, alpha_f = 0;
   /// Real time's reach: the largest change of an element edge in one step, relative to the
-  /// edge's length (|du_j - du_i| / |X_j - X_i| over the mesh's corner-to-corner edges), that
-  /// one linearised solve may make; a real-time step that moves further is redone as an
+  /// edge's length (|du_j - du_i| / |X_j - X_i| over the mesh's corner-to-corner edges; in a cut
+  /// element, over each piece's own nodal motion), that one linearised solve may make; a real-time step that moves further is redone as an
   /// accurate (Newton) step, counted in StepReport::realtime_redone. The linearisation moves
   /// nodes along chords: an edge turned by theta in one step is stretched by about theta^2 / 2
   /// (12% at 0.5). Off (unlimited_reach) by default, for a fixed cost per step. Set it (0.5) for a
@@ -66,8 +66,8 @@ struct NewmarkSettings {
   /// than over one step); then the tangent is assembled afresh. The forces stay exact, so the
   /// step still balances the equation of motion up to the linear solve: only its Jacobian is
   /// older, which changes the step's increment by about A^-1 (K - K_kept) du, small where the
-  /// Newmark matrix A = M / (beta dt^2) + K is mass-dominated. Not in a cut body (the measure
-  /// does not see its pieces' relative motion): there the tangent is assembled every step.
+  /// Newmark matrix A = M / (beta dt^2) + K is mass-dominated. In a cut body the measure reads
+  /// each cut element's pieces as they move, so a cut opening counts.
   /// Counted in StepReport::tangents_kept; solver/dynamics.hpp gives the measured cost and error.
   Scalar tangent_reach = 0;
 
