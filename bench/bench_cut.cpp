@@ -10,7 +10,11 @@
 // needs more iterations, the ratio says so, not the cut elements' cost); the cut elements'
 // stiffness points, with the compressed rule (the default) and, for bar5760 Hex8, without.
 //
-//   bench_cut [--steps 50] [--csv FILE]
+// With --realtime R every row runs in real-time mode instead, keeping its tangent within a reach
+// of R (NewmarkSettings::tangent_reach; 0: a tangent assembled every step), cut and uncut
+// alike: what a kept tangent saves in a cut body, whose cut elements cost the most to assemble.
+//
+//   bench_cut [--steps 50] [--csv FILE] [--realtime R]
 #include <plastifem/cutting.hpp>
 #include <plastifem/plastifem.hpp>
 
@@ -29,6 +33,9 @@ using plastifem::bench::median;
 
 namespace {
 
+/// --realtime: real-time rows with this tangent_reach (negative: accurate rows, the default).
+Scalar realtime_reach_of_rows = -1;
+
 
 struct Row {
   std::string scene, element, enrichment;
@@ -43,6 +50,10 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, const Material& mat, 
             bool clamp_x, CutOptions options = {}) {
   SolverSettings st;
   st.linear = {LinearSolverKind::ConjugateGradient, 1e-6, 1000};
+  if (realtime_reach_of_rows >= 0) {
+    st.newmark.mode = NewmarkMode::RealTime;
+    st.newmark.tangent_reach = realtime_reach_of_rows;
+  }
   Solver<E, Corotational, NoPlasticity, X> plain(mesh, mat, st), cut_run(mesh, mat, st);
   for (auto* s : {&plain, &cut_run}) {
     s->fix(clamp_x ? mesh.node_set("xmin") : select_nodes(mesh, [](const Vec3& p) { return p.z() < 1e-12; }));
@@ -62,7 +73,9 @@ Row measure(const std::string& scene, const Mesh<E>& mesh, const Material& mat, 
       na += ra.newton_iterations, nb += rb.newton_iterations, la += ra.linear_iterations, lb += rb.linear_iterations;
     }
   }
-  return {scene, E::name, X::name, plain.num_dofs(), cut_run.num_dofs(), median(a), median(b), median(b) / median(a),
+  const std::string label =
+      realtime_reach_of_rows < 0 ? scene : fmt::format("{} (real time K{:g})", scene, realtime_reach_of_rows);
+  return {label, E::name, X::name, plain.num_dofs(), cut_run.num_dofs(), median(a), median(b), median(b) / median(a),
           apply, cut_run.last_cut_report().ms, na / steps, nb / steps, la / steps, lb / steps,
           cut_run.last_cut_report().stiffness_points};
 }
@@ -76,19 +89,24 @@ int main(int argc, char** argv) try {
     const std::string a = argv[i];
     if (a == "--steps" && i + 1 < argc) steps = std::max(5, std::stoi(argv[++i]));
     else if (a == "--csv" && i + 1 < argc) csv = argv[++i];
+    else if (a == "--realtime" && i + 1 < argc) {
+      realtime_reach_of_rows = std::stod(argv[++i]);
+      if (!(realtime_reach_of_rows >= 0 && realtime_reach_of_rows <= 1))
+        fail<InvalidArgument>("--realtime {}: give a tangent reach in [0, 1]", realtime_reach_of_rows);
+    }
     else fail<InvalidArgument>("unknown option '{}'", a);
   }
   std::ofstream out(csv);
   out << "scene,element,enrichment,dofs_uncut,dofs_cut,uncut_ms,cut_ms,ratio,apply_cut_ms,classify_ms,newton_uncut,"
          "newton_cut,cg_uncut,cg_cut,cut_element_points\n";
-  fmt::print("{:22} {:5} {:17} {:>8} {:>8} {:>9} {:>9} {:>6} {:>11} {:>11} {:>13} {:>13} {:>7}\n", "scene", "elem",
+  fmt::print("{:36} {:5} {:17} {:>8} {:>8} {:>9} {:>9} {:>6} {:>11} {:>11} {:>13} {:>13} {:>7}\n", "scene", "elem",
              "enrichment", "dofs", "cut dofs", "uncut ms", "cut ms", "ratio", "cut() ms", "classify ms", "Newton u/c",
              "CG u/c", "points");
   auto emit = [&](const Row& r) {
-    fmt::print("{:22} {:5} {:17} {:>8} {:>8} {:>9.3f} {:>9.3f} {:>6.3f} {:>11.2f} {:>11.2f} {:>6.2f}/{:<6.2f} {:>6.1f}/{:<6.1f} {:>7}\n",
+    fmt::print("{:36} {:5} {:17} {:>8} {:>8} {:>9.3f} {:>9.3f} {:>6.3f} {:>11.2f} {:>11.2f} {:>6.2f}/{:<6.2f} {:>6.1f}/{:<6.1f} {:>7}\n",
                r.scene, r.element, r.enrichment, r.dofs_uncut, r.dofs_cut, r.uncut_ms, r.cut_ms, r.ratio, r.apply_ms,
                r.classify_ms, r.newton_uncut, r.newton_cut, r.cg_uncut, r.cg_cut, r.points);
-    out << fmt::format("{},{},{},{},{},{:.4f},{:.4f},{:.4f},{:.3f},{:.3f},{:.3f},{:.3f},{:.2f},{:.2f},{}\n", r.scene, r.element,
+    out << fmt::format("\"{}\",{},{},{},{},{:.4f},{:.4f},{:.4f},{:.3f},{:.3f},{:.3f},{:.3f},{:.2f},{:.2f},{}\n", r.scene, r.element,
                        r.enrichment, r.dofs_uncut, r.dofs_cut, r.uncut_ms, r.cut_ms, r.ratio, r.apply_ms, r.classify_ms,
                        r.newton_uncut, r.newton_cut, r.cg_uncut, r.cg_cut, r.points);
     out.flush();
