@@ -520,6 +520,24 @@ TEST_CASE("largest_edge_change: a rigid turn moves an edge by its chord, a stret
   CHECK(largest_edge_change(mesh, cut.enrichment(), w0, pulled, 1) == Approx(0.07).epsilon(1e-12));
   opened[all - 1] = std::numeric_limits<Scalar>::quiet_NaN();
   CHECK(std::isnan(largest_edge_change(mesh, cut.enrichment(), w0, opened, 1)));
+
+  // A cut along the faces at x = 2: the cells at 1 < x < 2 are cut elements with nothing above
+  // the cut (an empty side, no stiffness), only the x = 2 nodes are enriched. The end beyond the
+  // cut moving away whole by t (standard dofs t/2 and enriched t/2 at x = 2, so u - a = 0 below
+  // and u + a = t above; t at x = 3) changes no edge of any piece: 0, where the empty side,
+  // were it measured, would read |t|.
+  Solver<Hex8, Corotational, NoPlasticity, Heaviside> along(mesh, soft);
+  along.cut(CutPlane(Vec3(2, 0, 0), Vec3(1, 0, 0)));
+  const Index dofs = along.num_dofs();
+  REQUIRE(dofs > standard);
+  const Vec3 t(0.3, -0.2, 0.1);
+  const Vector v0 = Vector::Random(dofs);
+  Vector apart = v0;
+  for (Index i = 0; i < mesh.num_nodes(); ++i)
+    apart.segment<3>(3 * i) += mesh.node(i).x() > 2.5 ? t : mesh.node(i).x() > 1.5 ? Vec3(t / 2) : Vec3::Zero();
+  for (Index d = standard; d < dofs; d += 3) apart.segment<3>(d) += t / 2;
+  CHECK(largest_edge_change(mesh, along.enrichment(), v0, apart, 1) == Approx(0).margin(1e-15));
+  CHECK(largest_edge_change(mesh, v0, apart, 1) == Approx(0.5 * t.norm()).epsilon(1e-12));  // its standard dofs alone
 }
 
 namespace {
@@ -770,6 +788,7 @@ TEST_CASE("real time, tangent reach: the direct solver's kept factorisation, an 
       }
       const StepReport r = cut.step(0.01);
       if (reach > 0) rule.check(r.tangents_kept, cut.displacement());
+      else CHECK(r.tangents_kept == 0);
       if (k == 39) kept_before = rule.kept;
       u.push_back(cut.displacement());
     }

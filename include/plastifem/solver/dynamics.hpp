@@ -26,18 +26,18 @@
 //    forces only while no edge has changed by more than that fraction of its length since the
 //    state the tangent K was assembled at: the next step solves with that K (and, when undamped,
 //    with the matrix A as it was, and the direct solver's factorisation). In a cut body the
-//    measure reads each piece's own motion (the enriched dofs), so a cut opening or a piece
-//    turning away counts, and a piece falling away whole does not. The forces stay exact, so only
-//    the one solve's Jacobian is older; the step's increment changes by about A^-1 (K - K_kept)
-//    du, and a run moves from the fresh-tangent one by 0.3-2.9 reach^2 of its largest displacement
-//    (tests/test_dynamics.cpp: Hex8, Tet4, Tet10 bars swinging under gravity, reach 0.01 and
-//    0.02). On bar5760 (Hex8, 2 threads) a reach of 0.02 keeps 77% of the tangents and takes the
-//    step from 5.8 to 4.4 ms (CorotationalPerElement) and 10.6 to 5.6 ms (Corotational);
-//    docs/performance.md has the table. A body turning faster than the reach per step assembles
-//    every step; at a reach just above its turn per step the kept tangent lags a whole step's
-//    rotation (a bar spinning 0.02 rad per step, reach 0.03: 2.7% of its motion per element,
-//    against the linearisation's own 4.7%; 3.7% per point, against 1.6%), so keep the reach below
-//    the fastest rotation per step the scene expects.
+//    measure reads each piece's own motion (the enriched dofs), so a piece turning away, or a cut
+//    opening where it deforms the elements around it, counts, and a piece falling away whole does
+//    not. The forces stay exact, so only the one solve's Jacobian is older; the step's increment
+//    changes by about A^-1 (K - K_kept) du, and a run moves from the fresh-tangent one by 0.3-2.9
+//    reach^2 of its largest displacement (tests/test_dynamics.cpp: Hex8, Tet4, Tet10 bars swinging
+//    under gravity, reach 0.01 and 0.02). On bar5760 (Hex8, 2 threads) a reach of 0.02 keeps 77%
+//    of the tangents and takes the step from 5.8 to 4.4 ms (CorotationalPerElement) and 10.6 to
+//    5.6 ms (Corotational); docs/performance.md has the table. A body turning faster than the
+//    reach per step assembles every step; at a reach just above its turn per step the kept tangent
+//    lags a whole step's rotation (a bar spinning 0.02 rad per step, reach 0.03: 2.7% of its
+//    motion per element, against the linearisation's own 4.7%; 3.7% per point, against 1.6%), so
+//    keep the reach below the fastest rotation per step the scene expects.
 //
 // At constrained dofs u, v and a are the prescribed path's (solver/boundary.hpp). The initial
 // acceleration, unless the state's balances the current loads, constraints and inertia settings
@@ -123,8 +123,10 @@ Scalar largest_edge_change(const Mesh<E>& mesh, const Vector& u0, const Vector& 
 
 /// The same in a body cut by `enrichment` (enrichment/enrichment.hpp): an enriched element's
 /// edges as each of its sides moves them, the nodes displaced by u_a + sum_k psi_k^s a_k over
-/// its enriched dofs (as enrichment/output.hpp draws its pieces). So a cut opening and pieces
-/// turning apart count, and a piece falling away whole does not.
+/// its enriched dofs (as enrichment/output.hpp draws its pieces). A side with no material (the
+/// empty side of an element a cut runs along the face of) is not measured: it has no
+/// stiffness. So a piece turning away, or a cut opening where it deforms the elements around
+/// it, counts, and a piece moving away whole does not.
 template <FiniteElement E, class EnrichmentT>
 Scalar largest_edge_change(const Mesh<E>& mesh, const EnrichmentT& enrichment, const Vector& u0, const Vector& u1,
                            int threads) {
@@ -134,6 +136,7 @@ Scalar largest_edge_change(const Mesh<E>& mesh, const EnrichmentT& enrichment, c
     for (int a = 0; a < E::num_nodes; ++a) dU.col(a) = u1.segment<3>(3 * nodes[a]) - u0.segment<3>(3 * nodes[a]);
     const auto* cut = enrichment.element(e);
     for (int s = 0; s < (cut ? cut->num_sides : 1); ++s) {
+      if (cut && cut->num_sides == 2 && cut->stiffness[s].size() == 0) continue;  // an empty side
       ElementNodes<E> side = dU;
       if (cut)
         for (const auto& d : cut->enriched)

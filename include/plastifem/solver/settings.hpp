@@ -50,14 +50,15 @@ struct NewmarkSettings {
   /// Generalized-alpha weights of the balance (solver/newmark.hpp); 0, 0 is Newmark's method.
   /// Set them through generalized_alpha() or hht() rather than by hand.
   Scalar alpha_m = 0, alpha_f = 0;
-  /// Real time's reach: the largest change of an element edge in one step, relative to the
-  /// edge's length (|du_j - du_i| / |X_j - X_i| over the mesh's corner-to-corner edges; in a cut
-  /// element, over each piece's own nodal motion), that one linearised solve may make; a real-time step that moves further is redone as an
-  /// accurate (Newton) step, counted in StepReport::realtime_redone. The linearisation moves
-  /// nodes along chords: an edge turned by theta in one step is stretched by about theta^2 / 2
-  /// (12% at 0.5). Off (unlimited_reach) by default, for a fixed cost per step. Set it (0.5) for a
-  /// model undefined for inverted elements (NeoHookean, MooneyRivlin) that is let go suddenly:
-  /// solver/dynamics.hpp says why, with the figures.
+  /// Real time's reach: the largest change of an element edge in one step, relative to the edge's
+  /// length (|du_j - du_i| / |X_j - X_i| over the mesh's corner-to-corner edges; in a cut
+  /// element, over each piece's own nodal motion), that one linearised solve may make; a
+  /// real-time step that moves further is redone as an accurate (Newton) step, counted in
+  /// StepReport::realtime_redone. The linearisation moves nodes along chords: an edge turned by
+  /// theta in one step is stretched by about theta^2 / 2 (12% at 0.5). Off (unlimited_reach) by
+  /// default, for a fixed cost per step. Set it (0.5) for a model undefined for inverted elements
+  /// (NeoHookean, MooneyRivlin) that is let go suddenly: solver/dynamics.hpp says why, with the
+  /// figures.
   Scalar realtime_reach = unlimited_reach;
   /// Real time's tangent reuse (opt-in; 0, the default, assembles K at every step's end): a
   /// step keeps the tangent K its linearisation was assembled with, and evaluates only the
@@ -67,7 +68,7 @@ struct NewmarkSettings {
   /// step still balances the equation of motion up to the linear solve: only its Jacobian is
   /// older, which changes the step's increment by about A^-1 (K - K_kept) du, small where the
   /// Newmark matrix A = M / (beta dt^2) + K is mass-dominated. In a cut body the measure reads
-  /// each cut element's pieces as they move, so a cut opening counts.
+  /// each cut element's pieces as they move: a piece moving away whole does not count.
   /// Counted in StepReport::tangents_kept; solver/dynamics.hpp gives the measured cost and error.
   Scalar tangent_reach = 0;
 
