@@ -538,6 +538,39 @@ TEST_CASE("largest_edge_change: a rigid turn moves an edge by its chord, a stret
   for (Index d = standard; d < dofs; d += 3) apart.segment<3>(d) += t / 2;
   CHECK(largest_edge_change(mesh, along.enrichment(), v0, apart, 1) == Approx(0).margin(1e-15));
   CHECK(largest_edge_change(mesh, v0, apart, 1) == Approx(0.5 * t.norm()).epsilon(1e-12));  // its standard dofs alone
+
+  // Any increment, against the pieces as the element integrals see them (CutElement::side_nodes,
+  // which also place the output's pieces): each nonempty side's edges, one element at a time.
+  // An oblique cut through cells, random increments of every dof, both enrichments (their psi
+  // differ: +-1 and (H - H_i) / 2), so each side of a cut cell moves differently.
+  auto check_against_pieces = [&](auto enrichment_tag) {
+    using X = decltype(enrichment_tag);
+    Solver<Hex8, Corotational, NoPlasticity, X> oblique(mesh, soft);
+    oblique.cut(CutPlane(Vec3(1.5, 1, 1), Vec3(1, 0.3, 0.2).normalized()));
+    const auto& enrichment = oblique.enrichment();
+    const Vector a = Vector::Random(oblique.num_dofs()), b = a + 0.01 * Vector::Random(oblique.num_dofs());
+    Scalar largest = 0;
+    int sides_measured = 0;
+    for (Index e = 0; e < mesh.num_elements(); ++e) {
+      // The element's nodal displacements at a and b (side_nodes adds a side's enriched part).
+      const ElementNodes<Hex8> X0 = mesh.element_nodes(e), ua = mesh.element_nodes(e, a), ub = mesh.element_nodes(e, b);
+      const auto* split = enrichment.element(e);
+      for (int s = 0; s < (split ? split->num_sides : 1); ++s) {
+        if (split && split->num_sides == 2 && split->stiffness[s].size() == 0) continue;
+        const ElementNodes<Hex8> ya = split ? split->side_nodes(ua, a, s) : ua,
+                                 yb = split ? split->side_nodes(ub, b, s) : ub;
+        sides_measured += split ? 1 : 0;
+        for (const auto& [i, j] : Hex8::edges)
+          largest = std::max(largest, ((yb.col(j) - ya.col(j)) - (yb.col(i) - ya.col(i))).norm() /
+                                          (X0.col(j) - X0.col(i)).norm());
+      }
+    }
+    CHECK(sides_measured > mesh.num_elements() / 3);  // the cut reaches most of this small bar
+    CHECK(largest_edge_change(mesh, enrichment, a, b, 1) == Approx(largest).epsilon(1e-12));
+    CHECK(largest_edge_change(mesh, enrichment, a, b, 2) == largest_edge_change(mesh, enrichment, a, b, 1));
+  };
+  check_against_pieces(Heaviside{});
+  check_against_pieces(ShiftedHeaviside{});
 }
 
 namespace {
