@@ -74,10 +74,19 @@ struct CutElement {
     }
   }
 
+  /// Whether side s has material (stiffness points): a cut along the element's face, or
+  /// through nodes snapped onto it, leaves nothing on one side.
+  bool has_material(int s) const { return stiffness[s].size() > 0; }
+
   /// Effective nodes of side s: x + sum psi^s a at the enriched dofs' nodes (a read from u).
   ElementNodes<E> side_nodes(const ElementNodes<E>& x, const Vector& u, int s) const {
+    return side_nodes(x, s, [&](Index row) { return u.template segment<3>(3 * row); });
+  }
+  /// The same with a_k = `dof(row)` (e.g. an increment u1 - u0 read in place).
+  template <class Dof>
+  ElementNodes<E> side_nodes(const ElementNodes<E>& x, int s, const Dof& dof) const {
     ElementNodes<E> y = x;
-    for (const EnrichedDof& d : enriched) y.col(d.node) += d.psi[s] * u.template segment<3>(3 * d.row);
+    for (const EnrichedDof& d : enriched) y.col(d.node) += d.psi[s] * dof(d.row);
     return y;
   }
 
@@ -94,7 +103,7 @@ struct CutElement {
     ElementVector<E> fs;
     ElementMatrix<E> Ks;
     for (int s = 0; s < num_sides; ++s) {
-      if (stiffness[s].size() == 0) continue;
+      if (!has_material(s)) continue;
       W += Model::template evaluate_points<E>(law, stiffness[s], side_nodes(x, u, s), fs, K ? &Ks : nullptr, kind);
       scatter(fs, K ? &Ks : nullptr, s, f, K);
     }

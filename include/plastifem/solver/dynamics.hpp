@@ -132,15 +132,14 @@ Scalar largest_edge_change(const Mesh<E>& mesh, const EnrichmentT& enrichment, c
                            int threads) {
   return std::sqrt(detail::largest_over_elements(mesh.num_elements(), threads, [&](Index e, Scalar& m) {
     const auto& nodes = mesh.element(e);
-    ElementNodes<E> dU;
-    for (int a = 0; a < E::num_nodes; ++a) dU.col(a) = u1.segment<3>(3 * nodes[a]) - u0.segment<3>(3 * nodes[a]);
+    auto change = [&](Index row) { return u1.segment<3>(3 * row) - u0.segment<3>(3 * row); };
     const auto* cut = enrichment.element(e);
-    for (int s = 0; s < (cut ? cut->num_sides : 1); ++s) {
-      if (cut && cut->num_sides == 2 && cut->stiffness[s].size() == 0) continue;  // an empty side
-      ElementNodes<E> side = dU;
-      if (cut)
-        for (const auto& d : cut->enriched)
-          side.col(d.node) += d.psi[s] * (u1.segment<3>(3 * d.row) - u0.segment<3>(3 * d.row));
+    if (!cut) return detail::raise_to_edge_changes(mesh, e, [&](int a) { return change(nodes[a]); }, m);
+    ElementNodes<E> dU;
+    for (int a = 0; a < E::num_nodes; ++a) dU.col(a) = change(nodes[a]);
+    for (int s = 0; s < cut->num_sides; ++s) {
+      if (!cut->has_material(s)) continue;  // no stiffness: nothing to measure
+      const ElementNodes<E> side = cut->side_nodes(dU, s, change);
       detail::raise_to_edge_changes(mesh, e, [&](int a) { return side.col(a); }, m);
     }
   }));
