@@ -807,6 +807,97 @@ TEST_CASE("X-FEM: bad cuts are refused and leave the solver as it was", "[enrich
   CHECK(s.num_dofs() > after_first);
 }
 
+TEST_CASE("X-FEM: a cut along faces is refused along the same faces from their other side", "[enrichment]") {
+  // A cut along the x = 2 node layer with normal +x cuts the cells behind the layer, each with
+  // an empty side; the same plane with normal -x cuts the cells in front. Both enrich the x = 2
+  // nodes for one discontinuity: a mode of no mass and no stiffness (with shifted enrichment
+  // u = 2c, a1 = a2 = c), on which the nodal displacements drifted to 1e6 until CG broke down
+  // (found by review, 2026-11-30). Refused, the solver as it was, for either element,
+  // enrichment and order; another layer is still cut.
+  auto check = [](auto element, auto enrichment, Scalar first) {
+    using E = decltype(element);
+    using X = decltype(enrichment);
+    INFO(E::name << ", first normal " << first);
+    const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
+    Solver<E, Corotational, NoPlasticity, X> s(mesh, Material{3000, 0.45, 1.0});
+    s.fix(mesh.node_set("xmin"));
+    s.cut(CutPlane(Vec3(2, 0, 0), Vec3(first, 0, 0)));
+    const Index n = s.num_dofs();
+    const auto state = s.state();
+    CHECK(refused([&] { s.cut(CutPlane(Vec3(2, 0, 0), Vec3(-first, 0, 0))); }, "already runs along"));
+    CHECK(refused([&] { s.cut(CutPlane(Vec3(2, 0, 0), Vec3(first, 0, 0))); }, "already cut"));
+    CHECK(s.num_dofs() == n);
+    CHECK(s.state() == state);
+    s.cut(CutPlane(Vec3(3, 0, 0), Vec3(first, 0, 0)));  // the next layer: its own faces
+    CHECK(s.num_dofs() > n);
+  };
+  for (const Scalar first : {1.0, -1.0}) {
+    check(Hex8{}, Heaviside{}, first);
+    check(Hex8{}, ShiftedHeaviside{}, first);
+    check(Tet4{}, ShiftedHeaviside{}, first);
+  }
+}
+
+TEST_CASE("X-FEM: a node held after its cut opened holds both sides where they are, in every step mode",
+          "[enrichment][grasp]") {
+  // Found by review (2026-11-30): a node fixed or grasped on a falling piece had its enriched
+  // dofs held in the solve but not in the step's kinematics. They took the predictor's value
+  // and kept their velocity (accurate steps: 0.07 -> 2.1 in 100 steps, dragging the clamped
+  // half up against gravity to u_z = +1.1 at x = 2; real time: a velocity flipping sign every
+  // step). A held node holds the tissue on both sides (docs/xfem.md): its enriched dofs stay
+  // where they were at the grasp, with no velocity and no acceleration.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 2, 2);
+  const std::vector<Index> layer = select_nodes(mesh, [](const Vec3& p) { return std::abs(p.x() - 3) < 1e-9; });
+  const std::vector<Index> middle = select_nodes(mesh, [](const Vec3& p) { return std::abs(p.x() - 2) < 1e-9; });
+  auto run = [&](auto enrichment, NewmarkMode mode, MassKind mass, bool fix) {
+    using X = decltype(enrichment);
+    INFO((std::is_same_v<X, Heaviside> ? "Heaviside" : "shifted")
+         << (mode == NewmarkMode::RealTime ? ", real time" : ", accurate")
+         << (mass == MassKind::Lumped ? ", lumped" : ", consistent") << (fix ? ", fix" : ", grasp"));
+    SolverSettings st;
+    st.newmark.mode = mode;
+    st.mass = mass;
+    Solver<Hex8, Corotational, NoPlasticity, X> s(mesh, Material{3000, 0.45, 1.0}, st);
+    s.fix(mesh.node_set("xmin"));
+    s.add_gravity(Vec3(0, 0, -9.81));
+    s.cut(CutPlane(Vec3(2.5, 0, 0), Vec3(1, 0, 0)));
+    for (int k = 0; k < 20; ++k) s.step(0.01);  // the x > 2.5 piece falls
+    std::vector<Index> rows;
+    for (Index i : layer)
+      if (const Index r = s.enrichment().row(0, i); r >= 0)
+        for (int d = 0; d < 3; ++d) rows.push_back(3 * r + d);
+    REQUIRE(rows.size() == 3 * layer.size());
+    Scalar speed = 0;
+    for (Index d : rows) speed = std::max(speed, std::abs(s.velocity()[d]));
+    CHECK(speed > 0.5);  // the piece was moving when it was taken
+    if (fix) s.fix(layer);
+    else s.grasp(layer, [](Scalar) { return Vec3::Zero(); });
+    const Vector held = s.displacement();
+    int moved = 0;
+    Scalar highest = -1;  // the clamped half's x = 2 layer
+    for (int k = 0; k < 100; ++k) {
+      s.step(0.01);
+      for (Index d : rows)
+        moved += s.displacement()[d] != held[d] || s.velocity()[d] != 0 || s.acceleration()[d] != 0;
+      const Eigen::Matrix3Xd u = s.nodal_displacements();
+      for (Index i : middle) highest = std::max(highest, u(2, i));
+    }
+    CHECK(moved == 0);
+    // A grasp takes the layer where it is: the clamped half hangs under gravity between the
+    // clamp and the layer's side of the cut, below its rest height (measured at its highest
+    // -0.059 to -0.068); dragged up, it reached +1.1. (A fix moves the layer's standard dofs
+    // back to 0 at once, both sides with them: a jump that lifts the clamped half by design.)
+    INFO("highest u_z at x = 2 after the grasp: " << highest);
+    if (!fix) CHECK(highest < 0);
+  };
+  run(Heaviside{}, NewmarkMode::Accurate, MassKind::Consistent, false);
+  run(ShiftedHeaviside{}, NewmarkMode::Accurate, MassKind::Consistent, false);
+  run(ShiftedHeaviside{}, NewmarkMode::Accurate, MassKind::Consistent, true);
+  run(ShiftedHeaviside{}, NewmarkMode::RealTime, MassKind::Consistent, false);
+  run(Heaviside{}, NewmarkMode::RealTime, MassKind::Lumped, false);
+  run(ShiftedHeaviside{}, NewmarkMode::Accurate, MassKind::Lumped, true);
+}
+
 TEST_CASE("X-FEM: a cut 1e-9 from a node is snapped onto it", "[enrichment]") {
   // With snapping (the default, 1% of the element) the node moves onto the cut and no sliver
   // is made; without it (snap = 0, min_fragment = 0) a sliver piece of 1e-9 makes a nearly

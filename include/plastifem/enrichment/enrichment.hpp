@@ -232,6 +232,36 @@ class Enrichment {
         return true;
       });
     }
+    // A cut along element faces leaves the elements on one side of them cut, with an empty
+    // side; a second cut along the same faces from their other side (the same plane, its normal
+    // reversed) would enrich the same discontinuity twice: a mode with no mass and no stiffness.
+    {
+      auto surface_face = [&](Index e, const std::vector<Scalar>& level) {
+        std::vector<Index> face;
+        for (Index i : mesh.element(e))
+          if (level[i] == 0) face.push_back(i);  // on the surface (exactly, or snapped onto it)
+        std::sort(face.begin(), face.end());
+        return face;
+      };
+      std::vector<std::pair<std::vector<Index>, int>> faces;  // the earlier cuts' faces, and the cut
+      for (size_t k = 0; k < elements_.size(); ++k) {
+        const Element& el = elements_[k];
+        if (el.num_sides == 2 && el.cut != c && !(el.has_material(0) && el.has_material(1)))
+          faces.emplace_back(surface_face(element_index_[k], cuts_[el.cut].phi), el.cut);
+      }
+      std::sort(faces.begin(), faces.end());
+      for (Index e : cut) {
+        const Scalar V = side_volume[e][0] + side_volume[e][1];
+        if (!(std::min(side_volume[e][0], side_volume[e][1]) <= 1e-12 * V)) continue;
+        const std::vector<Index> face = surface_face(e, phi);
+        const auto it = std::lower_bound(faces.begin(), faces.end(), std::make_pair(face, -1));
+        if (face.size() >= 3 && it != faces.end() && it->first == face)
+          fail<InvalidArgument>("cut: the surface runs along the face of element {} that cut {} already runs along "
+                                "(from its other side); a second cut there would enrich the same discontinuity "
+                                "twice; nothing was cut",
+                                e, it->second);
+      }
+    }
     // 4. Commit. The one refusal found only while committing (an element that would carry more
     //    than max_enriched dofs: crossed by too many cuts) restores the snapshot, so that a
     //    refused cut leaves the body and its dof map as they were.

@@ -266,16 +266,22 @@ class Dynamics {
       fail<SolverError>("Newmark step at t = {}: the forces at t = {} are not finite{}; the state is unchanged",
                         n.t + nm.dt, n.t, where_invalid(p, n.u));
   }
+  /// The held dofs of u at their path: a constrained dof's prescribed value, any other held dof
+  /// (the enriched dofs of a node held after a cut opened) where it was at the step's start
+  /// (start_step). The solve leaves them there. (Before 2026-11-30 only the constrained dofs
+  /// were set: the others kept the predictor's value, so a node grasped on a falling piece had
+  /// its enriched dofs drift on at their old velocity, dragging the body.)
   void set_prescribed(Parts& p, Vector& u) const {
-    for (Index d : p.system.constrained_dofs()) u[d] = path_.u[d];
+    for (Index d : p.system.held_dofs()) u[d] = path_.u[d];
   }
 
-  /// a_, v_ from u by Newmark at the free dofs, the path's at constrained ones.
+  /// a_, v_ from u by Newmark at the free dofs, the path's at held ones (zero where nothing is
+  /// prescribed).
   void kinematics(Parts& p, const StateT& n, const Newmark& nm, const Vector& u) {
     nm.acceleration(u, n.u, n.v, a_start_, a_);
-    for (Index d : p.system.constrained_dofs()) a_[d] = path_.a[d];
+    for (Index d : p.system.held_dofs()) a_[d] = path_.a[d];
     nm.velocity(a_, n.v, a_start_, v_);
-    for (Index d : p.system.constrained_dofs()) v_[d] = path_.v[d];
+    for (Index d : p.system.held_dofs()) v_[d] = path_.v[d];
   }
 
   /// r_ = the residual at u (EquationOfMotion, with Newmark's a(u), v(u) and generalized-alpha's

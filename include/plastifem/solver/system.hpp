@@ -118,9 +118,11 @@ class System {
     for (Index r = 0; r < n / 3; ++r)
       if (!coupled[r]) held_[3 * r] = held_[3 * r + 1] = held_[3 * r + 2] = 1;
     blocks_ = ConstrainedBlocks(M.pattern(), held_);
-    prescribed_dofs_.clear();
-    for (Index d = 0; d < n; ++d)
+    prescribed_dofs_.clear(), held_dofs_.clear();
+    for (Index d = 0; d < n; ++d) {
       if (constrained_[d]) prescribed_dofs_.push_back(d);
+      if (held_[d]) held_dofs_.push_back(d);
+    }
     coefficients_ = {0, 0, 0};  // the held rows of A change
   }
 
@@ -130,6 +132,9 @@ class System {
   bool constrained(Index dof) const { return constrained_[dof] != 0; }
   bool any_constrained() const { return !prescribed_dofs_.empty(); }
   const std::vector<Index>& constrained_dofs() const { return prescribed_dofs_; }
+  /// Every held dof: the constrained ones, which follow their path, and the others (the
+  /// enriched dofs of constrained nodes, rows no element couples), which stay where they are.
+  const std::vector<Index>& held_dofs() const { return held_dofs_; }
 
   /// |v| over the free dofs. A plain loop in index order: zeros appended to v add nothing.
   Scalar free_norm(const Vector& v) const {
@@ -277,7 +282,7 @@ class System {
   MassKind element_mass_kind_ = MassKind::Consistent;
   std::vector<char> held_, constrained_;
   Vector damping_force_;  ///< damping_stiffness_at's force, unused
-  std::vector<Index> prescribed_dofs_;
+  std::vector<Index> prescribed_dofs_, held_dofs_;
   ConstrainedBlocks blocks_;
   std::array<Scalar, 3> coefficients_{0, 0, 0};
   std::uint64_t K_epoch_ = 0;
