@@ -262,6 +262,10 @@ TEST_CASE("vtu reader errors name the file and the line or cell", "[io][vtu]") {
     CHECK(contains(msg, "io_nan.vtu:8: expected a number"));
     CHECK(contains(msg, "'x'"));
   }
+  SECTION("non-finite coordinate: the points' line and the point") {
+    const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("inf.vtu", head + "0 0 0 1 0 0\n0 nan 0 0 0 1\n" + tail)); });
+    CHECK(contains(msg, "io_inf.vtu:6: point 2 has a non-finite coordinate (0, nan, 0)"));
+  }
   SECTION("too few values") {
     const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("few.vtu", head + "0 0 0 1 0 0 0 1 0 0 0\n" + tail)); });
     CHECK(contains(msg, "io_few.vtu:8: DataArray '(unnamed)' has 11 values, expected 12"));
@@ -560,6 +564,13 @@ TEST_CASE("gmsh reader errors name the file and line", "[io][gmsh]") {
     CHECK(contains(msg("nonnum.msh", fmt22 + "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1.0x 0\n4 0 0 1\n$EndNodes\n" + tet22),
                    "io_nonnum.msh:8: expected a coordinate, got '1.0x'"));
   }
+  SECTION("non-finite coordinate: the line and the node's tag (from_chars reads nan and inf)") {
+    for (const std::string bad : {"nan", "inf", "-inf", "infinity"}) {
+      INFO(bad);
+      CHECK(contains(msg("nonfinite.msh", fmt22 + "$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 " + bad + " 0\n4 0 0 1\n$EndNodes\n" + tet22),
+                     "io_nonfinite.msh:8: node 3 has a non-finite coordinate, " + bad));
+    }
+  }
   SECTION("unknown version, binary format, not a .msh") {
     CHECK(contains(msg("version.msh", "$MeshFormat\n3.0 0 8\n$EndMeshFormat\n"), "io_version.msh:2: unsupported MSH version '3.0'"));
     const std::string bin = msg("binary.msh", "$MeshFormat\n4.1 1 8\n\x01\x00\x00\x00\n$EndMeshFormat\n");
@@ -693,6 +704,8 @@ TEST_CASE("legacy vtk reader errors name the file and line or cell", "[io][vtk]"
   SECTION("non-numeric and missing values") {
     CHECK(contains(msg("nonnum.vtk", head + "POINTS 4 double\n0 0 0 1 0 0\n0 one 0 0 0 1\n" + cells),
                    "io_nonnum.vtk:7: expected a number (value 8 of 12 for POINTS), got 'one'"));
+    CHECK(contains(msg("inf.vtk", head + "POINTS 4 double\n0 0 0 1 0 0\n0 inf 0 0 0 1\n" + cells),
+                   "io_inf.vtk:7: expected a finite number (value 8 of 12 for POINTS), got 'inf'"));
     CHECK(contains(msg("short.vtk", head + "POINTS 4 double\n0 0 0 1 0 0\n0 1 0\n"),
                    "io_short.vtk:7: expected 12 values for POINTS, got end of file after 9"));
     CHECK(contains(msg("nocells.vtk", head + points), "io_nocells.vtk:7: expected CELLS, got end of file"));

@@ -30,6 +30,7 @@
 #include <plastifem/mesh/io/vtu.hpp>  // detail::TextScanner, parse_number
 #include <plastifem/mesh/selection.hpp>
 
+#include <cmath>
 #include <tuple>
 #include <unordered_map>
 
@@ -233,7 +234,11 @@ class GmshParser {
     const Index index = static_cast<Index>(f_.xyz.size() / 3);
     if (!f_.node_index.emplace(tag, index).second) s_.fail(fmt::format("node tag {} appears twice", tag));
     if (index == std::numeric_limits<Index>::max()) s_.fail("too many nodes");
-    for (auto c : {x, y, z}) f_.xyz.push_back(number<double>(c, "a coordinate"));
+    for (auto c : {x, y, z}) {
+      const double v = number<double>(c, "a coordinate");  // from_chars reads nan and inf too
+      if (!std::isfinite(v)) s_.fail(fmt::format("node {} has a non-finite coordinate, {}", tag, c));
+      f_.xyz.push_back(v);
+    }
   }
 
   void begin_unique(bool& seen, const char* name) {

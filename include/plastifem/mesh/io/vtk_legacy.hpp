@@ -17,6 +17,8 @@
 // expected"; a cell of another type than E "file: cell 12 has VTK type 5, expected 10 (Tet4)".
 #include <plastifem/mesh/io/vtu.hpp>  // MeshData, detail::TextScanner, assemble_mesh
 
+#include <cmath>
+
 namespace plastifem::io {
 namespace detail {
 
@@ -56,7 +58,7 @@ class LegacyVtkParser {
         if (points) s_.fail("a second POINTS section");
         const size_t n = count("the number of points");
         token("the point data type");
-        points = values<double>(3 * n, "POINTS");
+        points = values<double>(3 * n, "POINTS", true);
       } else if (iequals(kw, "CELLS")) {
         if (have_cells) s_.fail("a second CELLS section");
         have_cells = true;
@@ -188,8 +190,9 @@ class LegacyVtkParser {
       s_.fail(fmt::format("expected {} (a count >= 0), got {}", what, show(t)));
     return static_cast<size_t>(n);
   }
+  /// n numbers; `finite`: refuse nan and inf (coordinates), which parse_number reads.
   template <class T>
-  std::vector<T> values(size_t n, const std::string& what) {
+  std::vector<T> values(size_t n, const std::string& what, bool finite = false) {
     std::vector<T> v;
     v.reserve(std::min<size_t>(n, 1u << 20));  // n comes from the file: do not trust it with memory
     std::string_view t;
@@ -199,6 +202,9 @@ class LegacyVtkParser {
       if (!parse_number(t, x))
         s_.fail(fmt::format("expected {} (value {} of {} for {}), got {}", std::is_integral_v<T> ? "an integer" : "a number",
                             i + 1, n, what, show(t)));
+      if constexpr (std::is_floating_point_v<T>)
+        if (finite && !std::isfinite(x))
+          s_.fail(fmt::format("expected a finite number (value {} of {} for {}), got {}", i + 1, n, what, show(t)));
       v.push_back(x);
     }
     return v;

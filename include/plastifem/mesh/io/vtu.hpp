@@ -30,6 +30,7 @@
 #include <bit>
 #include <cerrno>
 #include <charconv>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -994,6 +995,10 @@ MeshData<E> read_vtu_string(const std::string& text, const std::string& file_nam
     const detail::XmlElement& points = child(child(piece, "Points"), "DataArray");
     if (arrays.components(points) != 3) fail(points, "expected NumberOfComponents=\"3\" for the points");
     const std::vector<double> xyz = arrays.read<double>(points, 3 * np);
+    for (size_t k = 0; k < xyz.size(); ++k)
+      if (!std::isfinite(xyz[k]))
+        fail(points, fmt::format("point {} has a non-finite coordinate ({}, {}, {})", k / 3, xyz[k - k % 3],
+                                 xyz[k - k % 3 + 1], xyz[k - k % 3 + 2]));
     nodes.resize(3, static_cast<Index>(np));
     std::copy(xyz.begin(), xyz.end(), nodes.data());
   }
