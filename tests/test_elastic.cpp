@@ -518,6 +518,11 @@ TEST_CASE("material validation names the bad parameter, from_lame round-trips", 
     INFO("nu = " << nu);
     REQUIRE(contains(error_of([&] { check({1000, nu, 1}); }), "Poisson ratio"));
   }
+  // Beyond double precision: a denormal E or density, Lame constants that overflow.
+  REQUIRE(contains(error_of([&] { check({1e-320, 0.3, 1}); }), "Young's modulus must be at least the smallest normal"));
+  REQUIRE(contains(error_of([&] { check({1000, 0.3, 1e-320}); }), "density must be at least the smallest normal"));
+  REQUIRE(contains(error_of([&] { check({1e308, 0.49, 1}); }), "Lame constants beyond double precision"));
+  REQUIRE(error_of([&] { check({1e300, 0.49, 1}); }) == "(no error)");
   for (Scalar rho : {0.0, -1.0, nan, inf}) {
     INFO("rho = " << rho);
     REQUIRE(contains(error_of([&] { check({1000, 0.3, rho}); }), "density"));

@@ -245,6 +245,30 @@ TEST_CASE("empty meshes, scaled tets, duplicated elements", "[state][mesh]") {
     X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
     CHECK_NOTHROW(Mesh<Tet4>(scale * X, {{0, 1, 2, 3}}));
   }
+  // A solver on it is refused with a MeshError naming the cause: its volume (1/6 scale^3)
+  // overflows or underflows (a step then failed with "element 0 is inverted"), or its mass
+  // rho V does.
+  auto solver_error = [](const Mesh<Tet4>& m, const Material& material) -> std::string {
+    try {
+      Solver<Tet4, Linear> s(m, material);
+    } catch (const MeshError& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  auto scaled = [](Scalar scale) {
+    Eigen::Matrix3Xd Y(3, 4);
+    Y << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+    return Mesh<Tet4>(scale * Y, {{0, 1, 2, 3}});
+  };
+  for (const auto& [scale, V] : {std::pair{1e110, "inf"}, std::pair{1e-110, "0"}}) {
+    const std::string msg = solver_error(scaled(scale), soft);
+    INFO(msg);
+    CHECK(msg.find(fmt::format("element 0 has volume {} ", V)) != std::string::npos);
+    CHECK(msg.find("beyond what double precision integrates") != std::string::npos);
+  }
+  CHECK(solver_error(scaled(1e100), Material{3000, 0.3, 1e50}).find("(mass inf,") != std::string::npos);
+  CHECK(solver_error(scaled(1e100), soft) == "(no error)");
   Eigen::Matrix3Xd X(3, 4);
   X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
   CHECK_THROWS_AS(Mesh<Tet4>(X, {{0, 1, 2, 3}, {1, 0, 3, 2}}), MeshError);

@@ -21,6 +21,7 @@
 #include <plastifem/assembly/mass.hpp>
 #include <plastifem/enrichment/cut_types.hpp>
 
+#include <cmath>
 #include <limits>
 #include <string>
 #include <type_traits>
@@ -46,6 +47,7 @@ class Discretization {
       : mesh_(mesh), dofs_(mesh.num_nodes()), assembler_(mesh_, dofs_), data_(mesh_, material), law_(make_law(material)) {
     if (mesh_.num_elements() == 0)
       fail<MeshError>("the mesh has no elements ({} nodes): nothing to simulate", mesh_.num_nodes());
+    check_scale(material);
     element_energy_.assign(mesh_.num_elements(), 0.0);
     X_ = Eigen::Map<const Vector>(mesh_.nodes().data(), 3 * mesh_.num_nodes());
     size_ = (mesh_.nodes().rowwise().maxCoeff() - mesh_.nodes().rowwise().minCoeff()).norm();
@@ -281,6 +283,20 @@ class Discretization {
   }
 
  private:
+  /// A valid mesh (Mesh checks shapes, which do not depend on the units) can still lie beyond
+  /// what double precision integrates: in units of 1e200 its volumes overflow, in 1e-120 they
+  /// underflow, and a step then fails naming an inverted element. Every element's volume and
+  /// mass (rho V) must be normal numbers, and its stiffness scale E V^(1/3) finite.
+  void check_scale(const Material& m) const {
+    for (Index e = 0; e < mesh_.num_elements(); ++e) {
+      const Scalar V = element_volume<E>(mesh_.element_nodes(e));
+      if (!(V > 0) || !std::isnormal(V) || !std::isnormal(m.density * V) || !std::isfinite(m.young * std::cbrt(V)))
+        fail<MeshError>("element {} has volume {} (mass {}, stiffness scale E V^(1/3) = {}): beyond what double "
+                        "precision integrates; give the mesh and the material in other units",
+                        e, V, m.density * V, m.young * std::cbrt(V));
+    }
+  }
+
   static auto make_law(const Material& m) {
     if constexpr (Enriched) return typename Elastic::Law(m);
     else return (void)m, NoCuts{};

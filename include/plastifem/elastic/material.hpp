@@ -66,12 +66,21 @@ struct Material {
   const Material& validated() const {
     if (!(young > 0) || !std::isfinite(young))
       fail<InvalidArgument>("Young's modulus must be finite and > 0, got E = {}", young);
+    // Normal numbers: a denormal E or density (1e-320) turns every product with it to round-off.
+    if (!std::isnormal(young))
+      fail<InvalidArgument>("Young's modulus must be at least the smallest normal double, got E = {}", young);
     if (!(poisson > -1 && poisson < 0.5))
       fail<InvalidArgument>("Poisson ratio must satisfy -1 < nu < 0.5, got nu = {} (nu = 0.5 is incompressible: "
                             "use nu = 0.49 to 0.499)",
                             poisson);
+    if (!std::isfinite(lambda()) || !std::isfinite(mu()))
+      fail<InvalidArgument>("E = {} and nu = {} give Lame constants beyond double precision (lambda = {}, mu = {}); "
+                            "give E in larger units (kPa, MPa)",
+                            young, poisson, lambda(), mu());
     if (!(density > 0) || !std::isfinite(density))
       fail<InvalidArgument>("density must be finite and > 0, got rho = {}", density);
+    if (!std::isnormal(density))
+      fail<InvalidArgument>("density must be at least the smallest normal double, got rho = {}", density);
     if (!std::isfinite(c01_share)) fail<InvalidArgument>("the Mooney-Rivlin c01_share must be finite, got {}", c01_share);
     return *this;
   }
