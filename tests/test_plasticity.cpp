@@ -30,6 +30,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -350,6 +351,74 @@ TEST_CASE("plastic parameters: out-of-range values are refused by name", "[plast
   bad.flow_rate = 3;
   CHECK_THROWS_AS(s.set_plastic_params(bad), InvalidArgument);
   CHECK(s.plastic_params().flow_rate == PlasticParams{}.flow_rate);
+}
+
+TEST_CASE("plastic parameters mid-run: thresholds keep their hardening, also through an infinite yield",
+          "[plasticity]") {
+  // A yield of +inf switches the stretch flow off (test_plastic_cut does so); switching it on
+  // again used to set every threshold to the new value, the hardening lost (found by review,
+  // 2026-11-30: tau in [7.7, 10.9] became 5 everywhere).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  PlasticParams p;
+  p.yield_stress = 5, p.flow_rate = 1, p.hardening = 1;
+  Solver<Hex8, Corotational, VertexBlended> s(mesh, soft, {}, p);
+  s.fix(mesh.node_set("xmin"));
+  s.add_traction(mesh.face_set("xmax"), Vec3(30, 0, 0));
+  for (int k = 0; k < 20; ++k) s.step(0.01);
+  const std::vector<Scalar> hardened = s.state().plastic.tau;
+  REQUIRE(*std::max_element(hardened.begin(), hardened.end()) > 6);  // it hardened
+  auto shifted = [&](Scalar by) {
+    std::vector<Scalar> t = hardened;
+    for (Scalar& x : t) x = std::max(Scalar(0), x + by);
+    return t;
+  };
+  PlasticParams q = p;
+  q.yield_stress = 7;
+  s.set_plastic_params(q);
+  CHECK(s.state().plastic.tau == shifted(2));  // shifted by the change of the initial value
+  PlasticParams off = q;
+  off.yield_stress = std::numeric_limits<Scalar>::infinity();
+  s.set_plastic_params(off);
+  CHECK(s.state().plastic.tau == shifted(2));  // left as they are
+  s.set_plastic_params(q);
+  CHECK(s.state().plastic.tau == shifted(2));  // on again at the same value: nothing changed
+  // A body built with the flow off starts at the value it is switched on with.
+  Solver<Hex8, Corotational, VertexBlended> later(mesh, soft, {}, off);
+  later.set_plastic_params(p);
+  for (const Scalar t : later.state().plastic.tau) CHECK(t == 5);
+}
+
+TEST_CASE("kinematic hardening: the centre moves towards the stress, at most onto it", "[plasticity]") {
+  // alpha += kappa_k gamma (s - alpha) overshot for kappa_k gamma > 1 and diverged past 2: at
+  // kappa_k = 500 the centre reached 1e154, |s| overflowed, and the steps reported 32 points
+  // yielding with gamma 0 (found by review, 2026-11-30). With the step capped at 1 the centre
+  // is a convex combination of zero and past stresses: bounded by the largest of them.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  for (const Scalar kk : {0.5, 500.0}) {
+    INFO("kinematic_hardening " << kk);
+    PlasticParams p;
+    p.yield_stress = 0, p.flow_rate = 1, p.hardening = 0, p.kinematic_hardening = kk;
+    Solver<Hex8, Corotational, VertexBlended> s(mesh, soft, {}, p);
+    s.fix(mesh.node_set("xmin"));
+    s.add_traction(mesh.face_set("xmax"), Vec3(30, 0, 0));
+    Scalar largest_stress = 0;
+    int inconsistent = 0;
+    for (int k = 0; k < 320; ++k) {
+      const StepReport r = s.step(0.01);
+      inconsistent += r.plastic.points_yielded > 0 && !(r.plastic.max_gamma > 0);
+      largest_stress = std::max(largest_stress, s.von_mises_stress().maxCoeff());
+    }
+    CHECK(inconsistent == 0);
+    Scalar largest_centre = 0;
+    for (const Scalar a : s.state().plastic.alpha) largest_centre = std::max(largest_centre, std::abs(a));
+    INFO("largest centre entry " << largest_centre << ", largest von Mises stress " << largest_stress);
+    // An entry of a deviator is at most its von Mises norm (|s_ij| <= sqrt(2/3) |s|_vM); the
+    // flow measures the second Piola-Kirchhoff deviator, within a factor (1 + strain)^2 of the
+    // Cauchy stress von_mises_stress gives: 2 covers strains to 40%.
+    CHECK(std::isfinite(largest_centre));
+    CHECK(largest_centre <= 2 * largest_stress);
+    CHECK(largest_centre > 0);
+  }
 }
 
 // --- invariants, every element x policy x elastic family ------------------------------------------

@@ -52,7 +52,8 @@
 //
 // Hardening. Isotropic: tau += kappa gamma |s|, tau_R += kappa eta phi. Kinematic (reconstructed
 // so that it has the units of a stress, the paper's "alpha <- alpha + kappa gamma (sigma -
-// alpha)/|sigma - alpha|" does not): alpha += kappa_k gamma (k dev(S) - alpha).
+// alpha)/|sigma - alpha|" does not): alpha += min(kappa_k gamma, 1) (k dev(S) - alpha), the
+// centre at most onto the stress.
 //
 // Rest-shape update (eq. 7-8). The plastic increment Fp = Rp Sp (the right factors of
 // F = Re Rp Se Sp, eq. 3) maps the rest shape about its centre c = X N(centre):
@@ -490,6 +491,10 @@ class ElementFlow {
         }
         const Mat3 s = en.alpha ? Mat3(dev_scaled[k] - unpack(en.alpha + 6 * k)) : dev_scaled[k];
         const Scalar vm = von_mises_norm(s);
+        if (!std::isfinite(vm)) {  // gamma would be NaN: no flow from it
+          ++rep.undefined_points;
+          continue;
+        }
         if (!(vm > en.tau[k]) || vm <= stress_floor) continue;
         Scalar g = prm.flow_rate * dt * (vm - en.tau[k]) / vm;
         if (g >= 1) g = 1, ++rep.gamma_clamped;
@@ -601,8 +606,10 @@ class ElementFlow {
       out.tau[k] = gamma[k] > 0 ? tau_new[k] : en.tau[k];
       if (en.alpha) {
         const Mat3 alpha = unpack(en.alpha + 6 * k);
-        pack(gamma[k] > 0 ? Mat3(alpha + prm.kinematic_hardening * gamma[k] * (dev_scaled[k] - alpha)) : alpha,
-             out.alpha + 6 * k);
+        // The centre moves towards the stress, at most onto it: kappa_k gamma > 2 overshot by
+        // more than it closed, and the centre grew without bound (1e154 at kappa_k = 500).
+        const Scalar step = std::min(prm.kinematic_hardening * gamma[k], Scalar(1));
+        pack(gamma[k] > 0 ? Mat3(alpha + step * (dev_scaled[k] - alpha)) : alpha, out.alpha + 6 * k);
       }
     }
     for (int r = 0; r < NR && en.tau_R; ++r) {

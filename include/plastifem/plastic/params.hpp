@@ -47,7 +47,7 @@ struct PlasticParams {
   /// Isotropic hardening kappa >= 0: tau += kappa gamma |s| and tau_R += kappa eta phi per step.
   Scalar hardening = 0.2;
   /// Kinematic hardening kappa_k >= 0: the centre of the yield surface moves towards the
-  /// stress, alpha += kappa_k gamma (s - alpha). 0 (the default): none.
+  /// stress, alpha += min(kappa_k gamma, 1) (s - alpha): at most onto it. 0 (the default): none.
   Scalar kinematic_hardening = 0;
 
   // --- volume and safeguards ---------------------------------------------------------------------

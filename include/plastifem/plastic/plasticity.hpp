@@ -57,6 +57,7 @@ class Plasticity {
     table.volume.assign(ne, 1.0);
     table.off.assign(ne, 0);
     table.version = 0;
+    table.tau_origin = prm.yield_stress, table.tau_R_origin = prm.rotation_yield;
     V0_.resize(ne), h_.resize(ne), q0_.resize(ne);
     for (Index e = 0; e < ne; ++e) {
       const ElementNodes<E> X = mesh.element_nodes(e);
@@ -90,14 +91,20 @@ class Plasticity {
 
   /// New parameters mid-run: thresholds keep their hardening, shifted by the change of the
   /// initial yield values; kinematic centres start at zero when kinematic hardening is switched
-  /// on.
-  void change_params(const PlasticParams& old, const PlasticParams& prm, PlasticTable& table) const {
-    auto shift = [](std::vector<Scalar>& v, Scalar from, Scalar to) {
-      if (from == to) return;
-      for (Scalar& t : v) t = std::isfinite(from) && std::isfinite(to) ? std::max(Scalar(0), t + (to - from)) : to;
+  /// on. An infinite yield value switches that flow off and leaves its thresholds as they are,
+  /// so that switching it on again, to the value it had, changes nothing (they were all set to
+  /// the new value: the hardening was lost); a table that never had a finite one starts at the
+  /// new value.
+  void change_params(const PlasticParams&, const PlasticParams& prm, PlasticTable& table) const {
+    auto shift = [](std::vector<Scalar>& v, Scalar& origin, Scalar to) {
+      if (!std::isfinite(to)) return;
+      if (!std::isfinite(origin)) std::fill(v.begin(), v.end(), to);
+      else if (origin != to)
+        for (Scalar& t : v) t = std::max(Scalar(0), t + (to - origin));
+      origin = to;
     };
-    shift(table.tau, old.yield_stress, prm.yield_stress);
-    shift(table.tau_R, old.rotation_yield, prm.rotation_yield);
+    shift(table.tau, table.tau_origin, prm.yield_stress);
+    shift(table.tau_R, table.tau_R_origin, prm.rotation_yield);
     if (prm.kinematic_hardening > 0 && table.alpha.empty()) table.alpha.assign(table.tau.size() * 6, 0.0);
     if (prm.rotation_active() && table.tau_R.empty()) {
       const size_t ne = table.off.size();

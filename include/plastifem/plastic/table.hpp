@@ -19,10 +19,13 @@
 //   off         per element: plasticity switched off, because its rest shape would have
 //               degenerated (switched_off) or because a cut enriched it (cut);
 //   version     changes whenever `rest` does: the solver re-prepares the element data of the
-//               elements whose rest nodes moved when it meets a table of another version.
+//               elements whose rest nodes moved when it meets a table of another version;
+//   tau_origin, tau_R_origin  the initial yield values tau and tau_R hardened from: the last
+//               finite ones (an infinite yield switches the flow off and leaves the thresholds).
 #include <plastifem/core/types.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -34,6 +37,7 @@ struct PlasticTable {
   std::vector<std::uint8_t> off;  ///< per element: 0 flows; switched_off (shape safeguard) or cut (enriched) do not
   static constexpr std::uint8_t switched_off = 1, cut = 2;
   std::uint64_t version = 0;
+  Scalar tau_origin = 0, tau_R_origin = 0;
 
   void resize(Index) {}  // (the State's dof count; the table is sized by the plastic policy)
 
@@ -47,6 +51,7 @@ struct PlasticTable {
     volume.assign(o.volume.begin(), o.volume.end());
     off.assign(o.off.begin(), o.off.end());
     version = o.version;
+    tau_origin = o.tau_origin, tau_R_origin = o.tau_R_origin;
   }
   PlasticTable() = default;
   PlasticTable(const PlasticTable& o) = default;
@@ -63,7 +68,8 @@ struct PlasticTable {
       return p.size() == q.size() && std::equal(p.data(), p.data() + p.size(), q.data());
     };
     return same(a.rest, b.rest) && same(a.tau, b.tau) && same(a.alpha, b.alpha) && same(a.tau_R, b.tau_R) &&
-           same(a.rotation, b.rotation) && same(a.volume, b.volume) && same(a.off, b.off) && a.version == b.version;
+           same(a.rotation, b.rotation) && same(a.volume, b.volume) && same(a.off, b.off) && a.version == b.version &&
+           same(std::array{a.tau_origin, a.tau_R_origin}, std::array{b.tau_origin, b.tau_R_origin});
   }
 };
 
