@@ -8,10 +8,12 @@
 //  - element data is copy-on-write per element, with an epoch.
 #include "catch.hpp"
 
+#include <plastifem/plasticity.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <functional>
 #include <limits>
 #include <stdexcept>
@@ -177,6 +179,87 @@ TEST_CASE("a failed step or solve leaves the whole state bit for bit, whatever f
     CHECK((s.displacement().array() == twin.displacement().array()).all());
     CHECK((s.velocity().array() == twin.velocity().array()).all());
   }
+}
+
+TEST_CASE("restore: a state taken earlier, then the same steps, give the same run bit for bit", "[state][restore]") {
+  // set_state(u, v, t) starts a new motion (its acceleration from equilibrium, no warm start,
+  // the current plastic table): it cannot go back. restore(state()) does, every field and the
+  // rest shapes with them (found by review, 2026-11-30: set_state back gave runs 1e-9 apart,
+  // and in a plastic body the old u on the later rest shapes).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  auto same = [](const auto& p, const auto& q) {
+    return p.size() == q.size() && std::equal(p.data(), p.data() + p.size(), q.data());
+  };
+  auto replay = [&](auto& s) {
+    set_up(s, mesh);
+    for (int k = 0; k < 10; ++k) s.step(0.01);
+    const auto snapshot = s.state();
+    std::vector<Vector> u, v;
+    for (int k = 0; k < 5; ++k) s.step(0.01), u.push_back(s.displacement()), v.push_back(s.velocity());
+    const auto end = s.state();
+    s.restore(snapshot);
+    CHECK(s.state() == snapshot);
+    int differ = 0;
+    for (int k = 0; k < 5; ++k) {
+      s.step(0.01);
+      differ += !same(s.displacement(), u[k]) || !same(s.velocity(), v[k]);
+    }
+    CHECK(differ == 0);
+    if constexpr (requires { end.plastic.rest; }) {
+      CHECK(same(s.state().plastic.rest, end.plastic.rest));
+      CHECK(same(s.state().plastic.tau, end.plastic.tau));
+    }
+  };
+  for (NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime}) {
+    INFO(std::string(mode == NewmarkMode::RealTime ? "real time" : "accurate"));
+    Solver<Hex8, Corotational> elastic(mesh, soft, mode_settings(mode));
+    replay(elastic);
+    // Plastic: every element has flowed by the snapshot (each then has rest data of its own,
+    // which the restore recomputes as the run computed it).
+    PlasticParams p;
+    p.yield_stress = 0.5, p.flow_rate = 1;
+    Solver<Hex8, Corotational, VertexBlended> plastic(mesh, soft, mode_settings(mode), p);
+    replay(plastic);
+  }
+  // Refused, the solver unchanged: a state of another dof count (from before a cut, or another
+  // mesh), a state that is not finite.
+  Solver<Hex8, Corotational> s(mesh, soft);
+  set_up(s, mesh);
+  s.step(0.01);
+  const auto now = s.state();
+  Solver<Hex8, Corotational> other(bar_mesh<Hex8>(2, 1, 1), soft);
+  CHECK_THROWS_AS(s.restore(other.state()), InvalidArgument);
+  auto bad = now;
+  bad.u[3] = std::numeric_limits<Scalar>::quiet_NaN();
+  CHECK_THROWS_AS(s.restore(bad), InvalidArgument);
+  CHECK(s.state() == now);
+}
+
+TEST_CASE("a moved-from solver refuses to change or step, with a message; the moved-to one goes on", "[state]") {
+  // A step on a moved-from solver read its empty members and crashed (found by review,
+  // 2026-11-30).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  Solver<Hex8, Corotational> a(mesh, soft), twin(mesh, soft);
+  set_up(a, mesh), set_up(twin, mesh);
+  a.step(0.01), twin.step(0.01);
+  Solver<Hex8, Corotational> b = std::move(a);
+  auto message = [](auto&& call) -> std::string {
+    try {
+      call();
+    } catch (const InvalidArgument& e) {
+      return e.what();
+    }
+    return "(no error)";
+  };
+  CHECK(message([&] { a.step(0.01); }) == "step: this Solver was moved from; use the one it was moved to");
+  CHECK(message([&] { a.fix(mesh.node_set("xmax")); }).find("moved from") != std::string::npos);
+  CHECK(message([&] { a.solve_static(); }).find("moved from") != std::string::npos);
+  b.step(0.01), twin.step(0.01);
+  CHECK(b.displacement() == twin.displacement());
+  // Assigned to again, it is a solver like any other.
+  a = Solver<Hex8, Corotational>(mesh, soft);
+  set_up(a, mesh);
+  CHECK_NOTHROW(a.step(0.01));
 }
 
 TEST_CASE("dof map growth: slots no element couples leave every step bit for bit unchanged", "[state][dofmap]") {

@@ -40,4 +40,24 @@ class HandleOwner {
   std::uint32_t id_;
 };
 
+/// Whether an object still holds its contents: true when constructed or copied, false once it
+/// has been moved from (its members then hold no body, no dofs). The Solver refuses to be
+/// changed or stepped when moved from, with a message, instead of reading empty members (a
+/// step on a moved-from solver crashed).
+class MovedFromFlag {
+ public:
+  MovedFromFlag() = default;
+  MovedFromFlag(const MovedFromFlag&) = default;
+  MovedFromFlag(MovedFromFlag&& o) noexcept : moved_from_(o.moved_from_) { o.moved_from_ = true; }
+  MovedFromFlag& operator=(const MovedFromFlag&) = default;
+  MovedFromFlag& operator=(MovedFromFlag&& o) noexcept {
+    if (this != &o) moved_from_ = o.moved_from_, o.moved_from_ = true;
+    return *this;
+  }
+  bool moved_from() const { return moved_from_; }
+
+ private:
+  bool moved_from_ = false;
+};
+
 }  // namespace plastifem

@@ -151,6 +151,9 @@ class Solver {
   /// Sets u, v and t; the acceleration is then solved from equilibrium at the next step, and
   /// the state counts as balanced with the load f_int(u) for statics.
   void set_state(const Vector& u, const Vector& v, Scalar time = 0);
+  /// Goes back to a state() taken earlier (undo): every field, the plastic table and its rest
+  /// shapes with it; refused if the dof map has changed since (a cut).
+  void restore(const StateType& s);
   /// Uses `a` as the acceleration at the current time instead of solving for equilibrium, until
   /// the loads, constraints, mass kind or damping change (MotionState::balance).
   void set_acceleration(const Vector& a);
@@ -230,8 +233,11 @@ class Solver {
     validate_settings(s);
     return s;
   }
-  /// Refuses a change of the simulation made from inside step() or solve_static().
+  /// Refuses a change of the simulation made from inside step() or solve_static(), and any
+  /// change or step of a solver that was moved from.
   void check_not_solving(const char* what) const {
+    if (moved_.moved_from())
+      fail<InvalidArgument>("{}: this Solver was moved from; use the one it was moved to", what);
     if (solving_)
       fail<InvalidArgument>("{}: called during step() or solve_static() (from a load curve or a prescribed path); "
                             "change the simulation between steps",
@@ -282,6 +288,7 @@ class Solver {
   /// during them; one that changes the solver (a cut, a constraint, a load, the state) would
   /// change the system under the step's feet and outlive a failed step, so it is refused.
   bool solving_ = false;
+  MovedFromFlag moved_;
   std::uint64_t serial_ = 0;
   mutable Vector scratch_;
 };

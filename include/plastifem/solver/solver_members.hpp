@@ -266,6 +266,25 @@ void Solver<E, Elastic, Plastic, Enrich>::set_state(const Vector& u, const Vecto
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
+void Solver<E, Elastic, Plastic, Enrich>::restore(const StateType& s) {
+  check_not_solving("restore");
+  if (s.num_dofs() != num_dofs() || s.v.size() != num_dofs() || s.a.size() != num_dofs())
+    fail<InvalidArgument>("restore: the state has {} dofs, the solver {} (a state from before a cut cannot be "
+                          "restored after it)",
+                          s.num_dofs(), num_dofs());
+  if (!s.u.allFinite() || !s.v.allFinite() || !s.a.allFinite() || !std::isfinite(s.t))
+    fail<InvalidArgument>("restore: the state is not finite");
+  if constexpr (requires { s.plastic.rest.size(); s.plastic.off.size(); }) {
+    if (s.plastic.rest.size() != 3 * mesh().num_nodes() || s.plastic.off.size() != static_cast<size_t>(mesh().num_elements()))
+      fail<InvalidArgument>("restore: the state's plastic table is not this mesh's");
+  }
+  StateType copy = s;
+  sync_rest_shapes(copy);  // the element data at its rest shapes (shapes that were valid then)
+  current_.swap(copy);
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
   plastic_.pattern_changed();
   body_.rebuild();
