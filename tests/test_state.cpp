@@ -235,7 +235,7 @@ TEST_CASE("restore: a state taken earlier, then the same steps, give the same ru
   CHECK(s.state() == now);
 }
 
-TEST_CASE("a moved-from solver refuses to change or step, with a message; the moved-to one goes on", "[state]") {
+TEST_CASE("a moved-from solver refuses to change or step with a message, the moved-to one goes on", "[state]") {
   // A step on a moved-from solver read its empty members and crashed (found by review,
   // 2026-11-30).
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
