@@ -163,6 +163,11 @@ class Enrichment {
     // Pieces and side volumes of each newly cut element.
     std::map<Index, std::array<std::vector<ReferenceTet>, 2>> pieces;
     std::map<Index, std::array<Scalar, 2>> side_volume;
+    // A side of a cut element with (relatively) no volume: the cut runs along the element's faces.
+    auto side_empty = [&](Index e, int s) {
+      const Scalar V = side_volume[e][0] + side_volume[e][1];
+      return V > 0 && side_volume[e][s] <= 1e-12 * V;
+    };
     for (Index e : cut) {
       std::array<Scalar, N> p;
       for (int a = 0; a < N; ++a) p[a] = phi[mesh.element(e)[a]];
@@ -251,8 +256,7 @@ class Enrichment {
       }
       std::sort(faces.begin(), faces.end());
       for (Index e : cut) {
-        const Scalar V = side_volume[e][0] + side_volume[e][1];
-        if (!(std::min(side_volume[e][0], side_volume[e][1]) <= 1e-12 * V)) continue;
+        if (!side_empty(e, 0) && !side_empty(e, 1)) continue;
         const std::vector<Index> face = surface_face(e, phi);
         const auto it = std::lower_bound(faces.begin(), faces.end(), std::make_pair(face, -1));
         if (face.size() >= 3 && it != faces.end() && it->first == face)
@@ -284,8 +288,7 @@ class Enrichment {
         // A cut along the element's faces leaves one side empty: the other is the whole
         // element, integrated with the element's own rules (so that such a cut gives what
         // duplicated nodes give; docs/xfem.md says for which models exactly).
-        const Scalar V = side_volume[e][0] + side_volume[e][1];
-        const bool whole[2] = {V > 0 && side_volume[e][1] <= 1e-12 * V, V > 0 && side_volume[e][0] <= 1e-12 * V};
+        const bool whole[2] = {side_empty(e, 1), side_empty(e, 0)};
         for (int s = 0; s < 2; ++s) {
           const bool empty = whole[1 - s];
           el.pieces[s] = empty ? std::vector<ReferenceTet>{} : pieces[e][s];
