@@ -400,6 +400,13 @@ TEST_CASE("pvd series: frames and a collection that is valid after every frame",
   CHECK(contains(text, "<DataSet timestep=\"0.5\" group=\"\" part=\"0\" file=\"bar_0001.vtu\"/>"));
   CHECK(contains(text, "<DataSet timestep=\"1.25\" group=\"\" part=\"0\" file=\"bar_0002.vtu\"/>"));
   CHECK_THROWS_AS(pvd.write(std::numeric_limits<double>::quiet_NaN(), mesh), InvalidArgument);
+  // A frame at the last frame's time or before it would be hidden by ParaView, or played out of
+  // order: refused, nothing written.
+  CHECK_THROWS_AS(pvd.write(1.25, mesh), InvalidArgument);
+  CHECK_THROWS_AS(pvd.write(0.5, mesh), InvalidArgument);
+  CHECK(pvd.num_frames() == 3);
+  CHECK(!std::filesystem::exists(std::filesystem::path(dir) / "bar_0003.vtu"));
+  CHECK(pvd.write(1.5, mesh) == std::filesystem::path(dir) / "bar_0003.vtu");
   CHECK_THROWS_AS(io::PvdWriter(dir, "a/b"), InvalidArgument);
   CHECK_THROWS_AS(io::PvdWriter(dir, ""), InvalidArgument);
 }

@@ -25,7 +25,8 @@ class PvdWriter {
     if (ec) fail<IoError>("cannot create directory '{}': {}", dir_.string(), ec.message());
   }
 
-  /// Writes frame number num_frames() at `time` and updates the .pvd. Returns the .vtu's path.
+  /// Writes frame number num_frames() at `time` (after the last frame's) and updates the .pvd.
+  /// Returns the .vtu's path.
   template <FiniteElement E>
   std::filesystem::path write(double time, const Mesh<E>& mesh, const std::vector<Field>& point_data = {},
                               const std::vector<Field>& cell_data = {}) {
@@ -37,6 +38,11 @@ class PvdWriter {
   template <class WriteFile>
   std::filesystem::path write_frame(double time, WriteFile&& write_file) {
     if (!std::isfinite(time)) fail<InvalidArgument>("PVD frame time must be finite, got {}", time);
+    // ParaView orders a collection by time and shows one data set per time: an equal or earlier
+    // time would hide a frame or play the series out of order.
+    if (!frames_.empty() && !(time > frames_.back().first))
+      fail<InvalidArgument>("PVD frame {} at time {} is not after frame {} at time {}", frames_.size(), time,
+                            frames_.size() - 1, frames_.back().first);
     const std::string name = fmt::format("{}_{:04d}.vtu", base_, frames_.size());
     const std::filesystem::path vtu = dir_ / name;
     write_file(vtu);
