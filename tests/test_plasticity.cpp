@@ -345,6 +345,7 @@ TEST_CASE("plastic parameters: out-of-range values are refused by name", "[plast
   refused([](PlasticParams& p) { p.max_step_rotation = 4; }, "max_step_rotation");
   refused([](PlasticParams& p) { p.min_rest_quality = 0; }, "min_rest_quality");
   refused([&](PlasticParams& p) { p.volume_restitution = nan; }, "volume_restitution");
+  refused([](PlasticParams& p) { p.rotation_frame = static_cast<PlasticParams::RotationFrame>(7); }, "rotation_frame");
   // Also when changed mid-run, with the parameters unchanged.
   Solver<Hex8, Corotational, CellCentered> s(mesh, soft);
   PlasticParams bad;

@@ -86,6 +86,9 @@ struct PlasticParams {
           "in [0, pi]");
     check(rotation_flow_rate >= 0 && rotation_flow_rate <= 1, "rotation_flow_rate (nu_R)", rotation_flow_rate,
           "in [0, 1], per unit time");
+    if (rotation_frame != RotationFrame::Tissue && rotation_frame != RotationFrame::World)
+      fail<InvalidArgument>("plasticity: rotation_frame = {} is not a RotationFrame (Tissue or World)",
+                            static_cast<int>(rotation_frame));
     check(hardening >= 0 && std::isfinite(hardening), "hardening (kappa)", hardening, "finite and >= 0");
     check(kinematic_hardening >= 0 && std::isfinite(kinematic_hardening), "kinematic_hardening", kinematic_hardening,
           "finite and >= 0");
