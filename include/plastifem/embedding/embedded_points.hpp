@@ -92,7 +92,7 @@ class EmbeddedPoints {
       const CutElement<E>* cut = enrichment.element(element_[k]);
       side_[k] = !(cut && cut->num_sides == 2)        ? 0
                  : !given_side_.empty() && given_side_[k] >= 0 ? given_side_[k]
-                                                               : side_of(*cut, xi_[k]);
+                                                               : cut->side_containing(xi_[k]);
     }
     sides_of_ = enrichment.instance(), sides_revision_ = enrichment.revision();
   }
@@ -207,26 +207,6 @@ class EmbeddedPoints {
     }
     side_.assign(static_cast<size_t>(count), 0);
   }
-
-
-  /// The side whose pieces contain xi; on the interface (round-off), the one it is least
-  /// outside of.
-  static int side_of(const CutElement<E>& cut, const Vec3& xi) {
-    int best = 0;
-    Scalar best_outside = std::numeric_limits<Scalar>::infinity();
-    for (int s = 0; s < 2; ++s)
-      for (const auto& t : cut.pieces[s]) {
-        Mat3 A;
-        for (int j = 0; j < 3; ++j) A.col(j) = t[j + 1] - t[0];
-        const Vec3 b = A.partialPivLu().solve(Vec3(xi - t[0]));
-        const Scalar outside = std::max({Scalar(0), -b.minCoeff(), b.sum() - 1});
-        if (outside < best_outside) best_outside = outside, best = s;
-        if (outside == 0) return s;
-      }
-    return best;
-  }
-
-
 
   Index num_nodes_, num_elements_;       ///< of the mesh the points were located in
   std::vector<typename Mesh<E>::Connectivity> nodes_;  ///< each point's element's nodes

@@ -29,7 +29,9 @@
 #include <plastifem/elastic/elastic.hpp>
 #include <plastifem/enrichment/subdivision.hpp>
 
+#include <algorithm>
 #include <array>
+#include <limits>
 #include <vector>
 
 namespace plastifem {
@@ -77,6 +79,24 @@ struct CutElement {
   /// Whether side s has material (stiffness points): a cut along the element's face, or
   /// through nodes snapped onto it, leaves nothing on one side.
   bool has_material(int s) const { return stiffness[s].size() > 0; }
+
+  /// The side whose pieces contain the reference point xi (0 in a blending element); on the
+  /// interface (round-off), the one it is least outside of.
+  int side_containing(const Vec3& xi) const {
+    if (num_sides == 1) return 0;
+    int best = 0;
+    Scalar best_outside = std::numeric_limits<Scalar>::infinity();
+    for (int s = 0; s < 2; ++s)
+      for (const auto& t : pieces[s]) {
+        Mat3 A;
+        for (int j = 0; j < 3; ++j) A.col(j) = t[j + 1] - t[0];
+        const Vec3 b = A.partialPivLu().solve(Vec3(xi - t[0]));
+        const Scalar outside = std::max({Scalar(0), -b.minCoeff(), b.sum() - 1});
+        if (outside < best_outside) best_outside = outside, best = s;
+        if (outside == 0) return s;
+      }
+    return best;
+  }
 
   /// Effective nodes of side s: x + sum psi^s a at the enriched dofs' nodes (a read from u).
   ElementNodes<E> side_nodes(const ElementNodes<E>& x, const Vector& u, int s) const {

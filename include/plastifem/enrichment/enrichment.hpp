@@ -425,6 +425,27 @@ class Enrichment {
         }
     return x;
   }
+  /// Adds the enriched dofs' share of a force f at node i to F: f psi(H_i, H_i) on each of its
+  /// enriched rows, the adjoint of nodal_displacements (the force does work on the node's
+  /// physical displacement, on its own side of each cut).
+  template <class Psi>
+  void add_nodal_force(Index i, const Vec3& f, Psi psi, Vector& F) const {
+    for (int c = 0; c < num_cuts(); ++c)
+      if (const Index r = row(c, i); r >= 0) {
+        const Scalar h = sign(c, i);
+        F.template segment<3>(3 * r) += psi(h, h) * f;
+      }
+  }
+  /// Adds the enriched dofs' share of a force f at reference point xi of element e to F:
+  /// N_a(xi) psi_k^s f on each enriched row k (at node a) of e, s the side whose piece contains
+  /// xi: the adjoint of the field at a point (seed 001 eq. 42; embedding/embedded_points.hpp).
+  void add_point_force(Index e, const Vec3& xi, const Vec3& f, Vector& F) const {
+    const Element* el = element(e);
+    if (!el) return;
+    const int s = el->side_containing(xi);
+    const auto Nxi = E::shape(xi);
+    for (const EnrichedDof& d : el->enriched) F.template segment<3>(3 * d.row) += (Nxi[d.node] * d.psi[s]) * f;
+  }
 
  private:
   struct CutRecord {

@@ -1,19 +1,32 @@
 #pragma once
-// External loads with handles: nodal forces (one force for many nodes, or one per node), body
-// forces per unit mass (gravity) and surface tractions, each scaled by a load curve.
+// External loads with handles: nodal forces (one force for many nodes, or one per node), point
+// forces, body forces per unit mass (gravity) and surface tractions, each scaled by a load curve.
 //
 // Each load keeps its definition and a force vector at curve value 1, recomputed when what it
 // depends on changes: the dof map (the vector grows with it) and, for body forces, the mass
 // kind, since a body force must pair with the mass matrix for a free body to fall at exactly g
 // (assembly/mass.hpp: consistent loads with the consistent mass, M_L g with the lumped one).
+// In a cut body (X-FEM) a nodal force, a point force and a body force also load the enriched
+// dofs, as the force's work on the field at its point asks (EnrichedLoads); a traction on a
+// face a cut crosses loads the standard dofs only (the face is not split: docs/xfem.md).
 #include <plastifem/assembly/mass.hpp>
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/solver/boundary.hpp>
 
+#include <functional>
 #include <string>
 #include <variant>
 
 namespace plastifem {
+
+/// A cut body's share of the loads on its enriched dofs, added to a load vector F (its rows
+/// after the nodes'); empty functions for a body without cuts.
+struct EnrichedLoads {
+  std::function<void(const Vec3& g, MassKind, Vector& F)> body;          ///< gravity g, integrated per piece
+  std::function<void(Index node, const Vec3& f, Vector& F)> node;        ///< f at a node, on its own side
+  std::function<void(Index e, const Vec3& xi, const Vec3& f, Vector& F)> point;  ///< f at xi in element e
+  explicit operator bool() const { return bool(body); }
+};
 
 /// Names a load for Solver::remove_load, of the solver that issued it only
 /// (core/handle_owner.hpp).
@@ -31,6 +44,12 @@ class Loads {
     std::vector<Index> nodes;
     std::vector<Vec3> forces;  ///< one per node
   };
+  /// A force at a point of element `element`, reference coordinates xi.
+  struct PointForce {
+    Index element;
+    Vec3 xi;
+    Vec3 f;
+  };
   struct BodyForce {
     Vec3 g;  ///< per unit mass
   };
@@ -38,7 +57,7 @@ class Loads {
     std::vector<FaceRef> faces;
     Vec3 t;  ///< per unit reference area
   };
-  using Definition = std::variant<NodalForces, BodyForce, Traction>;
+  using Definition = std::variant<NodalForces, PointForce, BodyForce, Traction>;
 
   // The definitions, from a user's input checked against the mesh (InvalidArgument says what is
   // wrong, `what` naming the load).
@@ -56,19 +75,14 @@ class Loads {
   }
   /// A point force f at the rest position X: the consistent nodal loads f N_a(xi) of the element
   /// containing X.
-  static NodalForces point_force(const Mesh<E>& mesh, const Vec3& X, const Vec3& f) {
+  static PointForce point_force(const Mesh<E>& mesh, const Vec3& X, const Vec3& f) {
     check_finite(X, "point force position");
     check_finite(f, "point force");
     const auto where = locate_point(mesh, X);
     if (!where)
       fail<InvalidArgument>("point force: ({}, {}, {}) is in no element of the mesh (rest configuration)", X.x(), X.y(),
                             X.z());
-    const auto Nxi = E::shape(where->xi);
-    const auto& c = mesh.element(where->element);
-    NodalForces n;
-    for (int a = 0; a < E::num_nodes; ++a)
-      if (Nxi[a] != 0) n.nodes.push_back(c[a]), n.forces.push_back(Nxi[a] * f);
-    return n;
+    return {where->element, where->xi, f};
   }
   static BodyForce body_force(const Vec3& g) {
     check_finite(g, "gravity");
@@ -105,11 +119,9 @@ class Loads {
   /// Changes whenever a load is added or removed.
   std::uint64_t version() const { return version_; }
 
-  /// Recomputes every load's force vector for num_dofs dofs (standard dofs first).
-  /// Cut bodies (X-FEM): `enriched` adds the enriched dofs' share of a body force g to F (body
-  /// forces are integrated per piece); a function reference, not kept.
-  using EnrichedBodyForce = std::function<void(const Vec3& g, MassKind, Vector& F)>;
-  void build(const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs, const EnrichedBodyForce& enriched = {}) {
+  /// Recomputes every load's force vector for num_dofs dofs (standard dofs first), with a cut
+  /// body's enriched share (`enriched`, not kept).
+  void build(const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs, const EnrichedLoads& enriched = {}) {
     for (Load& l : loads_) compute(l, mesh, density, mass, num_dofs, enriched);
     built_ = {density, mass, num_dofs};
   }
@@ -123,7 +135,7 @@ class Loads {
     }
   }
   /// A newly added load's vector needs build_one before use (cheap: that load only).
-  void build_last(const Mesh<E>& mesh, const EnrichedBodyForce& enriched = {}) {
+  void build_last(const Mesh<E>& mesh, const EnrichedLoads& enriched = {}) {
     if (!loads_.empty()) compute(loads_.back(), mesh, built_.density, built_.mass, built_.num_dofs, enriched);
   }
 
@@ -146,13 +158,22 @@ class Loads {
   };
 
   static void compute(Load& l, const Mesh<E>& mesh, Scalar density, MassKind mass, Index num_dofs,
-                      const EnrichedBodyForce& enriched) {
+                      const EnrichedLoads& enriched) {
     Vector F = Vector::Zero(num_dofs);
     if (const auto* n = std::get_if<NodalForces>(&l.def)) {
-      for (size_t k = 0; k < n->nodes.size(); ++k) F.segment<3>(3 * n->nodes[k]) += n->forces[k];
+      for (size_t k = 0; k < n->nodes.size(); ++k) {
+        F.segment<3>(3 * n->nodes[k]) += n->forces[k];
+        if (enriched) enriched.node(n->nodes[k], n->forces[k], F);
+      }
+    } else if (const auto* p = std::get_if<PointForce>(&l.def)) {
+      const auto Nxi = E::shape(p->xi);  // the consistent nodal loads f N_a(xi)
+      const auto& c = mesh.element(p->element);
+      for (int a = 0; a < E::num_nodes; ++a)
+        if (Nxi[a] != 0) F.segment<3>(3 * c[a]) += Nxi[a] * p->f;
+      if (enriched) enriched.point(p->element, p->xi, p->f, F);
     } else if (const auto* b = std::get_if<BodyForce>(&l.def)) {
       F.head(3 * mesh.num_nodes()) = body_force_load(mesh, density, b->g, mass);
-      if (enriched) enriched(b->g, mass, F);
+      if (enriched) enriched.body(b->g, mass, F);
     } else if (const auto* tr = std::get_if<Traction>(&l.def)) {
       F.head(3 * mesh.num_nodes()) = traction_load(mesh, tr->faces, tr->t);
     }

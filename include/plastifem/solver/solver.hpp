@@ -152,7 +152,7 @@ class Solver {
   /// the state counts as balanced with the load f_int(u) for statics.
   void set_state(const Vector& u, const Vector& v, Scalar time = 0);
   /// Goes back to a state() taken earlier (undo): every field, the plastic table and its rest
-  /// shapes with it; refused if the dof map has changed since (a cut).
+  /// shapes with it; refused for a state from before a cut.
   void restore(const StateType& s);
   /// Uses `a` as the acceleration at the current time instead of solving for equilibrium, until
   /// the loads, constraints, mass kind or damping change (MotionState::balance).
@@ -255,22 +255,23 @@ class Solver {
   /// Brings the element data to state s's rest shapes (plastic flow). What was derived from the
   /// old ones knows it by the element data's epoch.
   void sync_rest_shapes(const StateType& s) { plastic_.sync(body_, s.plastic, threads()); }
-  /// After a cut: its enriched elements stop flowing, and everything derived from the dof map
-  /// is rebuilt.
+  /// After a cut: its enriched elements stop flowing, and what derives from the dof map is rebuilt.
   void cut_applied() {
     rebuild();
+    cut_serial_ = current_.serial = ++serial_;  // restore() refuses the states from before
     if constexpr (enriched) cut_report_.plastic_frozen += plastic_.on_cut(body_.enrichment(), current_.plastic);
   }
-  /// X-FEM: the enriched dofs' share of a body force (empty without a cut).
-  typename LoadsType::EnrichedBodyForce enriched_body_force() const {
+  /// X-FEM: the enriched dofs' share of the loads (empty without a cut).
+  EnrichedLoads enriched_loads() const {
     if constexpr (enriched) {
-      if (body_.has_cuts())
-        return [this](const Vec3& g, MassKind kind, Vector& F) { body_.add_enriched_body_force(g, kind, F); };
+      if (const auto& en = body_.enrichment(); body_.has_cuts())
+        return {[this](const Vec3& g, MassKind kind, Vector& F) { body_.add_enriched_body_force(g, kind, F); },
+                [&en](Index i, const Vec3& f, Vector& F) { en.add_nodal_force(i, f, &Enrich::psi, F); },
+                [&en](Index e, const Vec3& xi, const Vec3& f, Vector& F) { en.add_point_force(e, xi, f, F); }};
     }
     return {};
   }
-  /// X-FEM: the enriched dofs of constrained nodes, held where the node is
-  /// (Enrichment::held_dofs).
+  /// X-FEM: the enriched dofs of constrained nodes, held where the node is (Enrichment::held_dofs).
   std::vector<Index> held_enriched_dofs() const;
 
   SolverSettings settings_;
@@ -289,7 +290,7 @@ class Solver {
   /// change the system under the step's feet and outlive a failed step, so it is refused.
   bool solving_ = false;
   MovedFromFlag moved_;
-  std::uint64_t serial_ = 0;
+  std::uint64_t serial_ = 0, cut_serial_ = 0;  ///< the last state's serial; the state's at the last cut
   mutable Vector scratch_;
 };
 

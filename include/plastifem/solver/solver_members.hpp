@@ -71,7 +71,7 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
 LoadHandle Solver<E, Elastic, Plastic, Enrich>::add_load(typename LoadsType::Definition def, LoadCurve curve, std::string what) {
   check_not_solving("adding a load");
   const LoadHandle h = loads_.add(std::move(def), std::move(curve), std::move(what));
-  loads_.build_last(mesh(), enriched_body_force());
+  loads_.build_last(mesh(), enriched_loads());
   return h;
 }
 
@@ -243,7 +243,7 @@ void Solver<E, Elastic, Plastic, Enrich>::set_settings(const SolverSettings& s) 
   settings_ = s;  // a new mass or damping: the committed acceleration's balance is not the current one
   system_.set_settings(body_, settings_);
   system_.set_threads(threads());
-  loads_.build(mesh(), material().density, settings_.mass, num_dofs(), enriched_body_force());
+  loads_.build(mesh(), material().density, settings_.mass, num_dofs(), enriched_loads());
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
@@ -272,6 +272,9 @@ void Solver<E, Elastic, Plastic, Enrich>::restore(const StateType& s) {
     fail<InvalidArgument>("restore: the state has {} dofs, the solver {} (a state from before a cut cannot be "
                           "restored after it)",
                           s.num_dofs(), num_dofs());
+  // A cut that added no dofs (one grown through enriched nodes) still changed the cut elements
+  // and, in a plastic body, which elements flow: a state from before it is not this body's.
+  if (s.serial < cut_serial_) fail<InvalidArgument>("restore: the state is from before a cut; a cut cannot be undone");
   if (!s.u.allFinite() || !s.v.allFinite() || !s.a.allFinite() || !std::isfinite(s.t))
     fail<InvalidArgument>("restore: the state is not finite");
   if constexpr (requires { s.plastic.rest.size(); s.plastic.off.size(); }) {
@@ -291,7 +294,7 @@ void Solver<E, Elastic, Plastic, Enrich>::rebuild() {
   const Index n = body_.num_dofs();
   system_.rebuild(body_, settings_, constraints_.constrained_dofs(), held_enriched_dofs());
   system_.set_threads(threads());
-  loads_.build(mesh(), material().density, settings_.mass, n, enriched_body_force());
+  loads_.build(mesh(), material().density, settings_.mass, n, enriched_loads());
   current_.grow(n);
   work_.reset(n), trial_.reset(n);
   dynamics_.resize(n);
