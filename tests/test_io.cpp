@@ -407,6 +407,15 @@ TEST_CASE("pvd series: frames and a collection that is valid after every frame",
   CHECK(pvd.num_frames() == 3);
   CHECK(!std::filesystem::exists(std::filesystem::path(dir) / "bar_0003.vtu"));
   CHECK(pvd.write(1.5, mesh) == std::filesystem::path(dir) / "bar_0003.vtu");
+  // A frame whose collection cannot be written is not in the series: the retry writes it again
+  // under its number (found by review, 2026-11-30: it was counted, and the retry listed a second
+  // frame at the same time).
+  std::filesystem::create_directory(pvd.pvd_path().string() + ".tmp");  // in the way of the collection
+  CHECK_THROWS_AS(pvd.write(2.0, mesh), IoError);
+  CHECK(pvd.num_frames() == 4);
+  std::filesystem::remove(pvd.pvd_path().string() + ".tmp");
+  CHECK(pvd.write(2.0, mesh) == std::filesystem::path(dir) / "bar_0004.vtu");
+  CHECK(pvd.num_frames() == 5);
   CHECK_THROWS_AS(io::PvdWriter(dir, "a/b"), InvalidArgument);
   CHECK_THROWS_AS(io::PvdWriter(dir, ""), InvalidArgument);
 }

@@ -47,7 +47,12 @@ class PvdWriter {
     const std::filesystem::path vtu = dir_ / name;
     write_file(vtu);
     frames_.emplace_back(time, name);
-    write_collection();
+    try {
+      write_collection();
+    } catch (...) {
+      frames_.pop_back();  // not in the series: a retry writes this frame again, under its name
+      throw;
+    }
     return vtu;
   }
 
