@@ -84,6 +84,14 @@ TEST_CASE("cage: open or inward surfaces and bad cell sizes are refused", "[cage
   CHECK_THROWS_AS(cage_around<Hex8>(box, 0), InvalidArgument);
   CHECK_THROWS_AS(cage_around<Hex8>(box, std::numeric_limits<Scalar>::quiet_NaN()), InvalidArgument);
   CHECK_THROWS_AS(cage_around<Hex8>(box, 1e-6), InvalidArgument);  // 1e6 cells a side
+  // 1667 cells a side passes the per-axis bound, but 4.6e9 cells would take 37 GB: refused with
+  // a message, not a bad_alloc (found by review, 2026-11-30).
+  try {
+    cage_around<Hex8>(box, 1.0 / 1667);
+    FAIL("accepted 4.6e9 cells");
+  } catch (const InvalidArgument& e) {
+    CHECK(std::string(e.what()).find("at most 1e8") != std::string::npos);
+  }
   TriangleSurface open = box;
   open.triangles.pop_back();
   CHECK_THROWS_AS(cage_around<Hex8>(open, 0.25), InvalidArgument);

@@ -157,6 +157,11 @@ Cage<E> cage_around(const TriangleSurface& s, Scalar h, const CageOptions& optio
     if (cells > 2000) fail<InvalidArgument>("cage: {} cells along axis {} (at most 2000): a larger cell size", cells, a);
     cage.cells[static_cast<size_t>(a)] = std::max(1, static_cast<int>(cells));
   }
+  // The inside fractions take 8 bytes a cell: 1e8 cells (800 MB) before a clear refusal rather
+  // than an allocation failure (2000 per axis alone would allow 8e9).
+  if (const Scalar total = Scalar(cage.cells[0]) * cage.cells[1] * cage.cells[2]; total > 1e8)
+    fail<InvalidArgument>("cage: {} x {} x {} = {:.3g} cells (at most 1e8): a larger cell size", cage.cells[0],
+                          cage.cells[1], cage.cells[2], total);
   const Vec3 extent(h * cage.cells[0], h * cage.cells[1], h * cage.cells[2]);
   cage.origin = (lo + hi) / 2 - extent / 2;
   const int n0 = cage.cells[0], n1 = cage.cells[1], n2 = cage.cells[2];
