@@ -14,6 +14,7 @@
 #include <plastifem/embedding/embedded_surface.hpp>
 #include <plastifem/plastifem.hpp>
 
+#include <map>
 #include <set>
 
 using namespace plastifem;
@@ -148,6 +149,52 @@ TEST_CASE("embedded surface cut with the tissue: open exactly along the cut, eac
           "[surface][enrichment]") {
   cut_sphere<Heaviside>();
   cut_sphere<ShiftedHeaviside>();
+}
+
+TEST_CASE("embedded surface opens with the tissue where a cut runs along a node plane or within the snap distance of one",
+          "[surface][enrichment]") {
+  // The bar held at z = 0 and lifted by 0.5 at z = 4, cut through at z0: the piece above moves
+  // up by 0.5 as a rigid body, the one below stays. Every crossing of the surface is a pair of
+  // vertices at one rest point, one moving with each piece: 0.5 apart, and no triangle is
+  // stretched across the gap. Found by review (2026-11-30), for a cut along the node plane z = 2
+  // with its normal down (a crossing on the shared face was located again in the uncut element
+  // beside the cut one, so both copies moved together: 142 triangles across the gap), and for
+  // a cut within the snap distance of it (the surface read the unsnapped distance where the
+  // level set was not stored, and opened nowhere: 94 triangles across).
+  auto check = [&]<class E>(E) {
+    const Mesh<E> mesh = bar_mesh<E>(6, 4, 4);
+    for (const Scalar z0 : {2.0, 2.003, 1.997})
+      for (const Scalar normal : {1.0, -1.0}) {
+        INFO(E::name << ", cut at z = " << z0 << ", normal " << normal);
+        EmbeddedSurface<E> surface(mesh, sphere_surface(Vec3(3, 2, 2.05), 1.5, 3));
+        Solver<E, Corotational, NoPlasticity, Heaviside> s(mesh, Material{3000, 0.45, 1.0});
+        s.fix(mesh.node_set("zmin"));
+        s.prescribe(mesh.node_set("zmax"), PrescribedMotion{[](Scalar, const Vec3&) { return Vec3(0, 0, 0.5); }, {}, {}});
+        s.cut(CutPlane(Vec3(0, 0, z0), Vec3(0, 0, normal)));
+        s.solve_static();
+        surface.update(s);
+        const TriangleSurface& t = surface.surface();
+        const Eigen::Matrix3Xd& x = surface.positions();
+        std::map<std::array<Scalar, 3>, std::vector<Index>> at;
+        for (Index v = t.num_vertices() - surface.num_crossing_vertices(); v < t.num_vertices(); ++v)
+          at[{t.vertices(0, v), t.vertices(1, v), t.vertices(2, v)}].push_back(v);
+        int pairs = 0;
+        Scalar worst = 0;
+        for (const auto& [rest, vs] : at) {
+          REQUIRE(vs.size() == 2);
+          ++pairs;
+          worst = std::max(worst, std::abs((x.col(vs[0]) - x.col(vs[1])).norm() - 0.5));
+        }
+        Scalar longest = 0;  // 0.247 at rest
+        for (const Triangle& tri : t.triangles)
+          for (int k = 0; k < 3; ++k) longest = std::max(longest, (x.col(tri[k]) - x.col(tri[(k + 1) % 3])).norm());
+        CHECK(pairs > 50);
+        CHECK(worst <= 1e-6);  // the solve's tolerance on a rigid lift
+        CHECK(longest < 0.3);
+      }
+  };
+  check(Hex8{});
+  check(Tet4{});
 }
 
 TEST_CASE("embedded surface cut along element faces opens with either normal, and a new solver re-splits",

@@ -53,6 +53,23 @@ class EmbeddedPoints {
     set_sides(std::move(sides));
   }
 
+  /// Points located already, each in element where[k].element at reference coordinates
+  /// where[k].xi, with their sides as above: a point on a face shared by a cut element and an
+  /// uncut one belongs to the one it is given in (located again, it would go to either).
+  EmbeddedPoints(const Mesh<E>& mesh, std::span<const PointLocation> where, std::vector<signed char> sides)
+      : num_nodes_(mesh.num_nodes()), num_elements_(mesh.num_elements()) {
+    for (size_t k = 0; k < where.size(); ++k) {
+      const PointLocation& w = where[k];
+      if (w.element < 0 || w.element >= mesh.num_elements() || !w.xi.allFinite() ||
+          !in_reference_element<E>(w.xi, 1e-6))
+        fail<InvalidArgument>("embedded point {}: element {} of {}, reference point ({}, {}, {}) not in it", k,
+                              w.element, mesh.num_elements(), w.xi.x(), w.xi.y(), w.xi.z());
+      place(mesh, w);
+    }
+    side_.assign(where.size(), 0);
+    set_sides(std::move(sides));
+  }
+
   /// Gives each point the side it belongs to in a cut element (as the constructor above; -1:
   /// the containing piece's), from the next field asked on.
   void set_sides(std::vector<signed char> sides) {
@@ -195,17 +212,21 @@ class EmbeddedPoints {
       if (!where)
         fail<InvalidArgument>("embedded point {} at ({}, {}, {}) is in no element of the mesh (rest configuration)", k,
                               p.x(), p.y(), p.z());
-      typename E::ShapeVector n = E::shape(where->xi);
-      // A point on a node takes exactly the node's values (Newton's xi is off by round-off).
-      for (int a = 0; a < N; ++a)
-        if (std::abs(n[a] - 1) <= 1e-12) n.setZero(), n[a] = 1;
-      element_.push_back(where->element), xi_.push_back(where->xi), shape_.push_back(n);
-      nodes_.push_back(mesh.element(where->element));
-      Vec3 at = Vec3::Zero();
-      for (int a = 0; a < N; ++a) at += n[a] * mesh.node(nodes_.back()[a]);
-      rest_.push_back(at);
+      place(mesh, *where);
     }
     side_.assign(static_cast<size_t>(count), 0);
+  }
+  /// Adds a point at `where`.
+  void place(const Mesh<E>& mesh, const PointLocation& where) {
+    typename E::ShapeVector n = E::shape(where.xi);
+    // A point on a node takes exactly the node's values (Newton's xi is off by round-off).
+    for (int a = 0; a < N; ++a)
+      if (std::abs(n[a] - 1) <= 1e-12) n.setZero(), n[a] = 1;
+    element_.push_back(where.element), xi_.push_back(where.xi), shape_.push_back(n);
+    nodes_.push_back(mesh.element(where.element));
+    Vec3 at = Vec3::Zero();
+    for (int a = 0; a < N; ++a) at += n[a] * mesh.node(nodes_.back()[a]);
+    rest_.push_back(at);
   }
 
   Index num_nodes_, num_elements_;       ///< of the mesh the points were located in

@@ -99,6 +99,7 @@ class EmbeddedSurface {
     std::vector<Vec3> X;  // rest positions: the given vertices', then the crossings'
     for (Index i = 0; i < n_given; ++i) X.push_back(given_.vertices.col(i));
     std::vector<signed char> crossing_side;  // per crossing vertex: its side, -1 where not opened
+    std::vector<std::optional<PointLocation>> crossing_at;  // per crossing vertex: the cut element it opens in
     std::vector<signed char> given_side(static_cast<size_t>(n_given), -1);
     std::vector<Triangle> triangles = given_.triangles;
     for (int c = 0; c < enr.num_cuts(); ++c) {
@@ -124,9 +125,10 @@ class EmbeddedSurface {
       struct At {
         Scalar phi;
         bool in_cut_element;
+        PointLocation where;  // in the cut element, if in one
       };
       auto level_set = [&](const Vec3& x) {
-        At r{signed_distance(cut, x), false};
+        At r{signed_distance(cut, x), false, {}};
         bool nodal = false;
         locator.for_each_containing(x, [&](const PointLocation& where) {
           if (r.in_cut_element) return;
@@ -134,6 +136,7 @@ class EmbeddedSurface {
           const bool cut_here = in_cut_element(where.element);
           if ((cut_here || !nodal) && nodal_level_set(where.element, where.xi, phi)) r.phi = phi, nodal = true;
           r.in_cut_element = cut_here;
+          if (cut_here) r.where = where;
         });
         return r;
       };
@@ -160,7 +163,7 @@ class EmbeddedSurface {
         const Vec3 Xp = X[static_cast<size_t>(p)], Xm = X[static_cast<size_t>(m)];
         Scalar t0 = 0, t1 = 1, f0 = phi[static_cast<size_t>(p)], f1 = phi[static_cast<size_t>(m)];
         Vec3 at = Xp;
-        At here{f0, false};
+        At here{f0, false, {}};
         const Scalar tol = 1e-13 * (std::abs(f0) + std::abs(f1));
         for (int it = 0, last = 0; it < 60; ++it) {
           const Scalar t = f0 - f1 > 0 ? t0 + (t1 - t0) * f0 / (f0 - f1) : 0.5 * (t0 + t1);
@@ -185,6 +188,7 @@ class EmbeddedSurface {
         for (int s = 0; s < (opens ? 2 : 1); ++s) {
           r[static_cast<size_t>(s)] = static_cast<Index>(X.size());
           X.push_back(at), crossing_side.push_back(opens ? static_cast<signed char>(s) : -1);
+          crossing_at.push_back(opens ? std::optional<PointLocation>(here.where) : std::nullopt);
         }
         if (!opens) r[1] = r[0];
         return crossing[key] = r;
@@ -248,10 +252,17 @@ class EmbeddedSurface {
     Index next_id = n_given;
     std::vector<Vec3> kept_X;
     std::vector<signed char> kept_side;
+    // Where the crossings are: an opening one in the cut element it opens in (on a face the cut
+    // runs along, located again it could go to the uncut element beside, which has one side:
+    // both copies then moved together; found by review, 2026-11-30).
+    std::vector<PointLocation> kept_at;
     for (size_t v = static_cast<size_t>(n_given); v < X.size(); ++v)
       if (renumber[v] >= 0) {
         renumber[v] = next_id++;
-        kept_X.push_back(X[v]), kept_side.push_back(crossing_side[v - static_cast<size_t>(n_given)]);
+        const size_t k = v - static_cast<size_t>(n_given);
+        const std::optional<PointLocation> at = crossing_at[k] ? crossing_at[k] : locator.locate(X[v]);
+        if (!at) fail<InvalidArgument>("embedded surface: crossing {} at ({}, {}, {}) is in no element", k, X[v].x(), X[v].y(), X[v].z());
+        kept_X.push_back(X[v]), kept_side.push_back(crossing_side[k]), kept_at.push_back(*at);
       }
     for (Triangle& t : triangles)
       for (Index& v : t) v = renumber[static_cast<size_t>(v)];
@@ -261,7 +272,7 @@ class EmbeddedSurface {
     split_surface.vertices.leftCols(n_given) = given_.vertices;
     for (size_t k = 0; k < kept_X.size(); ++k) split_surface.vertices.col(n_given + static_cast<Index>(k)) = kept_X[k];
     std::optional<EmbeddedPoints<E>> crossings;
-    if (!kept_X.empty()) crossings.emplace(mesh, split_surface.vertices.rightCols(next_id - n_given).eval(), std::move(kept_side));
+    if (!kept_X.empty()) crossings.emplace(mesh, std::span<const PointLocation>(kept_at), std::move(kept_side));
     // Commit (nothing below throws).
     surface_ = std::move(split_surface);
     crossings_ = std::move(crossings);

@@ -73,7 +73,8 @@ class Enrichment {
   /// This enrichment's own number (a solver's; unique in the program, unlike its address,
   /// which a later solver may reuse).
   std::uint64_t instance() const { return instance_; }
-  /// The level set of cut c at node i (NaN where it was not needed: far from the cut).
+  /// The level set of cut c at node i, snapped (NaN where it was not evaluated: away from the
+  /// elements the cut meets).
   Scalar level_set(int c, Index i) const { return cuts_[c].phi[i]; }
   /// Cut c's surface (the grown one, for a grown cut).
   const Cut& geometry(int c) const { return cuts_[c].geometry; }
@@ -271,8 +272,14 @@ class Enrichment {
     //    refused cut leaves the body and its dof map as they were.
     const Snapshot before{cuts_, elements_, element_index_, index_, dofs};
     try {
+      // The level set wherever it was evaluated (every node of the elements the cut meets,
+      // snapped), which an embedded surface splits along (embedding/embedded_surface.hpp: a
+      // surface that fell back on the unsnapped distance there stayed joined across a snapped
+      // cut); the signs of the candidates, which their enriched dofs' psi take.
+      for (Index i = 0; i < n; ++i)
+        if (!std::isnan(phi[i])) record.phi[i] = phi[i];
       for (Index i : candidates)
-        if (!std::isnan(phi[i])) record.phi[i] = phi[i], record.H[i] = phi[i] >= 0 ? 1 : -1;
+        if (!std::isnan(phi[i])) record.H[i] = phi[i] >= 0 ? 1 : -1;
       const Index dofs_before = dofs.num_dofs();
       for (Index i : enrich) record.row[i] = dofs.add_slot(i);
       rep.enriched_nodes = static_cast<int>(enrich.size());
