@@ -35,8 +35,11 @@
 //  - One element per tip per update: the crack runs at most an element per step (the stresses
 //    are those of the step just solved; the next solve redistributes them).
 //  - A tip whose next element is outside the body has run through it and stops; so does one
-//    whose next element a cut crosses already (another cut, or the crack itself where its end
-//    touches the element), or whose growth the solver refuses.
+//    whose next element another cut crosses already, or whose growth the solver refuses. The
+//    elements past the path's end that the crack itself crosses already (a Tet4 cell's beside
+//    it, or one whose nodes were snapped onto the crack line) are split by it: the tip is
+//    carried through them, and B is the first element after them (or the path runs on to the
+//    boundary through them).
 //  - Ties for the start (a uniform field) go to the middle of the tied elements.
 // The cut is rebuilt as a CutSurface of the whole path and applied with grow_cut: the grown
 // ribbon contains the old one, so what was cut stays cut (docs/xfem.md, "Tearing"). With a
@@ -124,7 +127,15 @@ class Tearing {
     if (path.size() < 2) fail<InvalidArgument>("tearing: a crack path needs at least 2 points, got {}", path.size());
     for (const Vec3& p : path)
       if (!p.allFinite()) fail<InvalidArgument>("tearing: a crack path point is not finite");
-    std::deque<Vec3> points(path.begin(), path.end());
+    // A repeated point (closer than the inset to the one before) is one: a segment of no length
+    // has no direction, and a tip along it never grew.
+    std::deque<Vec3> points;
+    for (const Vec3& p : path)
+      if (points.empty() || (p - points.back()).norm() > inset()) points.push_back(p);
+    if (points.size() < 2)
+      fail<InvalidArgument>("tearing: a crack path needs at least 2 distinct points, got {} (all within {} of each "
+                            "other)",
+                            path.size(), inset());
     // An end inside an element is carried on to where the line leaves it: the path runs from
     // element face to element face (the file comment).
     for (const bool front : {false, true}) {
@@ -192,11 +203,32 @@ class Tearing {
     std::vector<Tip> next;
     std::deque<Vec3> path = path_;
     for (const Tip& t : tips_) {
-      const std::optional<Index> b = element_past(t.point, t.direction);
-      if (!b || is_cut(*b)) continue;  // through the body, into another cut, or the crack crosses it already: done
+      // Through the body or into another cut: done. The elements past the path's end that the
+      // crack itself crosses already (its ribbon, swept along w, crosses the elements of a Tet4
+      // cell beside the end; nodes snapped onto the crack line make the element past it a cut
+      // one) are split by the crack: the tip is carried through them along its direction, to
+      // the first element it does not cross, which is torn or not by the criterion. (Stopping at
+      // them stopped a Tet4 crack at once, and a Hex8 one run within the snap distance of a node
+      // row; found by review, 2026-11-30.)
+      Tip tip = t;
+      std::vector<Vec3> carried;
+      std::optional<Index> b = element_past(tip.point, tip.direction);
+      for (int k = 0; b && is_cut(*b) && k < 16; ++k) {
+        const Vec3 in = tip.point + 2 * inset() * tip.direction;
+        tip.point = in + (exit(*b, in, tip.direction) - inset()) * tip.direction;
+        carried.push_back(tip.point);
+        b = element_past(tip.point, tip.direction);
+      }
+      if (!b || is_cut(*b)) {
+        if (!b && !carried.empty()) {  // out of the body through them: the path runs on to its boundary
+          for (const Vec3& p : carried) t.front ? path.push_front(p) : path.push_back(p);
+          ++report.grown;
+        }
+        continue;
+      }
       const ElementNodes<E> Xb = solver_->mesh().element_nodes(*b);
-      const Vec3 entry = t.point + 2 * inset() * t.direction;  // in B
-      const Vec3 q = entry + 0.5 * exit(*b, entry, t.direction) * t.direction;
+      const Vec3 entry = tip.point + 2 * inset() * tip.direction;  // in B
+      const Vec3 q = entry + 0.5 * exit(*b, entry, tip.direction) * tip.direction;
       const Vec3 xi = locate_in_element<E>(Xb, q, 1e-6).value_or(reference_centre<E>());
       const Scalar s = principal(recovered_stress(*b, xi)).first;
       report.largest_stress = std::max(report.largest_stress, s);
@@ -204,13 +236,12 @@ class Tearing {
         next.push_back(t);
         continue;
       }
-      Vec3 d = direction(*b, xi, principal(averaged_stress(t.point)).second, t.direction);
+      Vec3 d = direction(*b, xi, principal(averaged_stress(tip.point)).second, tip.direction);
       Scalar length = exit(*b, entry, d);
-      if (length < 0.05 * extent(*b, d)) d = t.direction, length = exit(*b, entry, d);  // d leaves B at once
-      const Vec3 p = entry + (length - inset()) * d;
-      if (t.front) path.push_front(p);
-      else path.push_back(p);
-      next.push_back(Tip{p, d, t.front});
+      if (length < 0.05 * extent(*b, d)) d = tip.direction, length = exit(*b, entry, d);  // d leaves B at once
+      carried.push_back(entry + (length - inset()) * d);
+      for (const Vec3& p : carried) t.front ? path.push_front(p) : path.push_back(p);
+      next.push_back(Tip{carried.back(), d, t.front});
       ++report.grown;
     }
     if (report.grown > 0) {
