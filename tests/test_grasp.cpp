@@ -21,6 +21,7 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 
@@ -324,6 +325,48 @@ TEST_CASE("device samples: a path through readings, linear between them, extende
   CHECK_THROWS_AS(d.add(21.0, Vec3(0, 0, 0)), InvalidArgument);  // not after the last
   CHECK_THROWS_AS(d.add(30.0, Vec3(0, std::nan(""), 0)), InvalidArgument);
   CHECK_THROWS_AS(d.add(std::numeric_limits<Scalar>::infinity(), Vec3(0, 0, 0)), InvalidArgument);
+  // A recorded trajectory queued ahead is followed from its start (found by review, 2026-12-01:
+  // only the last 8 samples were kept, and the path gave the 13th at t = 0 and at 0.05).
+  DeviceSamples ahead(0, Vec3::Zero());
+  for (int k = 1; k <= 20; ++k) ahead.add(0.01 * k, Vec3(0, 0, 0.01 * k));
+  const auto h = ahead.path();
+  CHECK(h(0) == Vec3::Zero());
+  CHECK((h(0.05) - Vec3(0, 0, 0.05)).norm() < 1e-15);
+  CHECK((h(0.155) - Vec3(0, 0, 0.155)).norm() < 1e-15);
+  // Past the capacity the oldest samples go, and a time before those kept is refused.
+  DeviceSamples many(0, Vec3::Zero());
+  const Scalar n = static_cast<Scalar>(DeviceSamples::capacity);
+  for (int k = 1; k <= static_cast<int>(DeviceSamples::capacity) + 10; ++k) many.add(k, Vec3(k, 0, 0));
+  CHECK_THROWS_AS(many.path()(5.0), InvalidArgument);
+  CHECK((many.path()(n + 0.5) - Vec3(n + 0.5, 0, 0)).norm() < 1e-9);
+}
+
+TEST_CASE("a path defined from the start time only moves its nodes from the first step", "[grasp][path]") {
+  // A step's initial acceleration took the path's derivatives from the left, at t - 1e-4 ...
+  // t - 3e-4: a recorded table that starts at t = 0 (and throws before it, or gives NaN) made
+  // the first step fail (found by review, 2026-12-01). The initial acceleration is the right
+  // limit, over [t, t + 3h]: what the step that starts at t needs.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  for (const NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime})
+    for (const bool nan_before : {false, true}) {
+      INFO((mode == NewmarkMode::RealTime ? "real time" : "accurate") << (nan_before ? ", NaN before 0" : ", throws before 0"));
+      SolverSettings settings;
+      settings.newmark.mode = mode;
+      Solver<Hex8, Corotational> s(mesh, soft, settings);
+      s.fix(mesh.node_set("xmin"));
+      s.prescribe(mesh.node_set("xmax"), [nan_before](Scalar t, const Vec3&) {
+        if (t < 0) {
+          if (nan_before) return Vec3(0, 0, std::numeric_limits<Scalar>::quiet_NaN());
+          throw std::out_of_range("the table starts at t = 0");
+        }
+        return Vec3(0, 0, 0.5 * t * t);  // a = 1 from the start
+      });
+      for (int k = 0; k < 5; ++k) s.step(0.01);
+      for (Index i : mesh.node_set("xmax")) {
+        CHECK(s.displacement()[3 * i + 2] == Approx(0.5 * 0.05 * 0.05).epsilon(1e-12));
+        CHECK(s.acceleration()[3 * i + 2] == Approx(1).epsilon(1e-6));  // second differences, h = 1e-4 (round-off 1e-8)
+      }
+    }
 }
 
 TEST_CASE("a grasp driven by device samples moves at their velocity, with the reaction of the smooth path",

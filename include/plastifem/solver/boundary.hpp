@@ -29,6 +29,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -63,20 +64,24 @@ inline LoadCurve ramp_hold_release(Scalar t_ramp, Scalar t_release) {
 /// stop the grasp); before the first it stays at the first. A reading for the current time
 /// (add(s.time(), p)) is accepted too, but the path then jumps to it at that time and the step
 /// that follows carries the jump, as any discontinuous path does.
-/// Samples must come in increasing time; only the last few are kept (the path is evaluated
-/// within the current step and a few difference steps before it).
+/// Samples must come in increasing time. A recorded trajectory may be queued ahead; the last
+/// `capacity` samples are kept, and a path asked for a time before the oldest kept one, once
+/// older ones were dropped, is refused (it kept 8, and returned the oldest of them for any
+/// earlier time: 20 samples queued ahead left the grasp still; found by review, 2026-12-01).
 class DeviceSamples {
  public:
+  static constexpr size_t capacity = 4096;
+
   DeviceSamples(Scalar t0, const Vec3& p0) : data_(std::make_shared<Data>()) { add(t0, p0); }
   /// The device's position p at time t, later than the last sample's.
   void add(Scalar t, const Vec3& p) {
     if (!std::isfinite(t) || !p.allFinite())
       fail<InvalidArgument>("device sample: time {} and position ({}, {}, {}) must be finite", t, p.x(), p.y(), p.z());
     auto& d = *data_;
-    if (d.count > 0 && !(t > d.time[(d.count - 1) % kept]))
-      fail<InvalidArgument>("device sample: time {} is not after the last sample's, {}", t, d.time[(d.count - 1) % kept]);
-    d.time[d.count % kept] = t, d.position[d.count % kept] = p;
-    ++d.count;
+    if (!d.time.empty() && !(t > d.time.back()))
+      fail<InvalidArgument>("device sample: time {} is not after the last sample's, {}", t, d.time.back());
+    d.time.push_back(t), d.position.push_back(p);
+    if (d.time.size() > capacity) d.time.pop_front(), d.position.pop_front(), d.dropped = true;
   }
   /// The path through the samples (shares them: samples added later move it).
   std::function<Vec3(Scalar)> path() const {
@@ -84,21 +89,21 @@ class DeviceSamples {
   }
 
  private:
-  static constexpr int kept = 8;
   struct Data {
-    std::array<Scalar, kept> time{};
-    std::array<Vec3, kept> position;
-    int count = 0;
+    std::deque<Scalar> time;
+    std::deque<Vec3> position;
+    bool dropped = false;  ///< older samples than time.front() were dropped
     Vec3 at(Scalar t) const {
-      const int n = std::min(count, kept), last = count - 1;
-      auto T = [&](int k) { return time[k % kept]; };
-      auto P = [&](int k) { return position[k % kept]; };
-      if (n == 1 || t <= T(last - n + 1)) return P(n == 1 ? last : last - n + 1);
+      if (dropped && t < time.front())
+        fail<InvalidArgument>("device samples: the path at t = {} is before the oldest sample kept, at {} (the last {} "
+                              "are kept: add samples as the simulation comes to them)",
+                              t, time.front(), capacity);
+      const size_t n = time.size();
+      if (n == 1 || t <= time.front()) return position.front();
       // The segment [k - 1, k] containing t, or the last one, extended.
-      int k = last;
-      while (k > last - n + 1 && t <= T(k - 1)) --k;
-      const Scalar w = (t - T(k - 1)) / (T(k) - T(k - 1));
-      return Vec3(P(k - 1) + w * (P(k) - P(k - 1)));
+      const size_t k = std::min(n - 1, static_cast<size_t>(std::lower_bound(time.begin(), time.end(), t) - time.begin()));
+      const Scalar w = (t - time[k - 1]) / (time[k] - time[k - 1]);
+      return Vec3(position[k - 1] + w * (position[k] - position[k - 1]));
     }
   };
   std::shared_ptr<Data> data_;
@@ -221,8 +226,14 @@ class Constraints {
   /// (so a path that jumps must be defined a little beyond t). The same holds for a given
   /// velocity whose acceleration is differenced. Returns the number of constrained nodes (per
   /// constraint set holding them) whose path or velocity jumped so.
+  ///
+  /// `from_right`: the derivatives as the right limits, over [t, t + 3h], what a step that
+  /// starts at t needs (its initial acceleration): a path need not be defined before the time
+  /// the simulation starts at (a recorded table from t = 0 made the first step fail; found by
+  /// review, 2026-12-01).
   template <class NodePosition>
-  Index evaluate(Scalar t, Scalar dt, const NodePosition& X, Vector& u, Vector* v, Vector* a) const {
+  Index evaluate(Scalar t, Scalar dt, const NodePosition& X, Vector& u, Vector* v, Vector* a,
+                 bool from_right = false) const {
     const Scalar h = std::min(dt / 16, Scalar(1e-4));
     Index jumps = 0;
     for (const Set& s : sets_) {
@@ -241,13 +252,13 @@ class Constraints {
             if (m.velocity) {
               gv = checked(m.velocity(t, Xi), "velocity", i, t);
             } else {
-              const OneSided d = one_sided(at(m.displacement, "displacement"), t, g, h, a && !m.acceleration);
+              const OneSided d = one_sided(at(m.displacement, "displacement"), t, g, h, a && !m.acceleration, from_right);
               gv = d.first, ga = d.second, jumped = d.jumped;
             }
             if (m.acceleration) {
               ga = checked(m.acceleration(t, Xi), "acceleration", i, t);
             } else if (a && m.velocity) {
-              const OneSided d = one_sided(at(m.velocity, "velocity"), t, gv, h, false);
+              const OneSided d = one_sided(at(m.velocity, "velocity"), t, gv, h, false, from_right);
               ga = d.first, jumped = d.jumped;
             }
           }
@@ -294,21 +305,23 @@ class Constraints {
     bool jumped = false;
   };
   template <class F>
-  static OneSided one_sided(const F& f, Scalar t, const Vec3& f0, Scalar h, bool second) {
-    // f3 also when only f' is wanted: the jump test needs three differences.
-    const std::array<Vec3, 4> v{f0, f(t - h), f(t - 2 * h), f(t - 3 * h)};
-    const std::array<Vec3, 3> d{v[0] - v[1], v[1] - v[2], v[2] - v[3]};
+  static OneSided one_sided(const F& f, Scalar t, const Vec3& f0, Scalar h, bool second, bool from_right) {
     OneSided r;
-    if (!jump_inside(f, t, h, v, d)) {
-      r.first = (3 * d[0] - d[1]) / (2 * h);
-      if (second) r.second = (2 * d[0] - 3 * d[1] + d[2]) / (h * h);
-      return r;
+    if (!from_right) {
+      // f3 also when only f' is wanted: the jump test needs three differences.
+      const std::array<Vec3, 4> v{f0, f(t - h), f(t - 2 * h), f(t - 3 * h)};
+      const std::array<Vec3, 3> d{v[0] - v[1], v[1] - v[2], v[2] - v[3]};
+      if (!jump_inside(f, t, h, v, d)) {
+        r.first = (3 * d[0] - d[1]) / (2 * h);
+        if (second) r.second = (2 * d[0] - 3 * d[1] + d[2]) / (h * h);
+        return r;
+      }
+      r.jumped = true;
     }
     const Vec3 g1 = f(t + h), g2 = f(t + 2 * h), g3 = second ? f(t + 3 * h) : g2;
     const Vec3 e1 = g1 - f0, e2 = g2 - g1, e3 = g3 - g2;
     r.first = (3 * e1 - e2) / (2 * h);
     if (second) r.second = -(2 * e1 - 3 * e2 + e3) / (h * h);
-    r.jumped = true;
     return r;
   }
   /// Whether f jumps inside [t - 3h, t], given its values v_k = f(t - kh) and their differences

@@ -189,7 +189,7 @@ class Dynamics {
     const bool moving = p.constraints.any_motion();
     if (moving) {
       work_ = s.u;
-      p.constraints.evaluate(s.t, 1.0, position_of(p), work_, nullptr, &path_.a);
+      p.constraints.evaluate(s.t, 1.0, position_of(p), work_, nullptr, &path_.a, /*from_right=*/true);
     }
     equation_.residual(p, {moving ? &path_.a : nullptr, &s.v, nullptr, 1}, f_int_, f_ext_, r_);
     rhs_ = -r_;

@@ -87,7 +87,8 @@ class Solver {
   /// Lets go of a constraint set: its nodes move freely from their current displacement and
   /// velocity (where an earlier set constrains the same dofs, that one applies again).
   void release(ConstraintHandle h);
-  /// Gives a constraint set a new motion (a grasper that changes direction).
+  /// Gives a constraint set a new motion (a grasper that changes direction). A grasp's nodes keep
+  /// their offsets u_i - path at the grasp: its new path goes on from the old one's position.
   void replace(ConstraintHandle h, PrescribedMotion motion);
 
   /// Force `f` on each of the given nodes, scaled by `curve(t)`.
