@@ -20,6 +20,7 @@
 #include <plastifem/plasticity.hpp>
 
 #include <cmath>
+#include <functional>
 #include <numbers>
 
 using namespace plastifem;
@@ -83,6 +84,29 @@ bool finite(const S& s) {
   return s.displacement().allFinite() && s.velocity().allFinite() && std::isfinite(s.strain_energy());
 }
 
+/// Statics in increments k = 1 .. increments of the pull k delta* / 10.5 (the constraint set
+/// `held` given pull(delta)), each followed by growing the crack until it stops at that pull
+/// (every growth re-solved); `before_update` runs before each update. Returns the increment the
+/// crack started in (-1: none).
+template <class S, class Pull>
+int tear_in_increments(S& s, Tearing<S>& tearing, ConstraintHandle held, const Pull& pull, int increments,
+                       const std::function<void()>& before_update = [] {}) {
+  int started_at = -1;
+  for (int k = 1; k <= increments; ++k) {
+    s.replace(held, pull(k * delta_star / 10.5));
+    s.solve_static();
+    for (int round = 0; round < 100; ++round) {
+      before_update();
+      const TearReport r = tearing.update();
+      if (r.started) started_at = k;
+      if (!r.started && r.grown == 0) break;
+      s.solve_static();
+      REQUIRE(finite(s));
+    }
+  }
+  return started_at;
+}
+
 }  // namespace
 
 TEST_CASE("tearing: a uniformly pulled sheet tears at the strength, straight across, in statics", "[tearing]") {
@@ -98,22 +122,10 @@ TEST_CASE("tearing: a uniformly pulled sheet tears at the strength, straight acr
   // Increments of delta* / 10.5: the strength is passed in the 11th (delta 1.048 delta*; the
   // 10th reaches 0.952 delta*, and corotational Cauchy stress under a pure stretch with Poisson
   // 0 is E (stretch - 1) exactly).
-  int started_at = -1;
   Scalar energy_at_tear = 0;
-  for (int k = 1; k <= 16; ++k) {
-    const Scalar delta = k * delta_star / 10.5;
-    s.replace(top, pull(delta));
-    s.solve_static();
-    // Grow until the crack stops at this pull (each growth re-solved).
-    for (int round = 0; round < 100; ++round) {
-      if (!tearing.started()) energy_at_tear = s.strain_energy();
-      const TearReport r = tearing.update();
-      if (r.started) started_at = k;
-      if (!r.started && r.grown == 0) break;
-      s.solve_static();
-      REQUIRE(finite(s));
-    }
-  }
+  const int started_at = tear_in_increments(s, tearing, top, pull, 16, [&] {
+    if (!tearing.started()) energy_at_tear = s.strain_energy();
+  });
   INFO("started in increment " << started_at << ", path of " << tearing.path().size() << " points");
   CHECK(started_at == 11);
   REQUIRE(tearing.started());
@@ -220,18 +232,7 @@ TEST_CASE("tearing: pulled at 45 degrees to the mesh's lines, the crack runs acr
   auto pull = [a](Scalar delta) { return PrescribedMotion{[a, delta](Scalar, const Vec3& X) { return uniaxial(a, delta, X); }, {}, {}}; };
   const ConstraintHandle held = s.prescribe(edges, pull(0));
   Tearing<S> tearing(s, tear(strength));
-  int started_at = -1;
-  for (int k = 1; k <= 14; ++k) {
-    s.replace(held, pull(k * delta_star / 10.5));
-    s.solve_static();
-    for (int round = 0; round < 100; ++round) {
-      const TearReport r = tearing.update();
-      if (r.started) started_at = k;
-      if (!r.started && r.grown == 0) break;
-      s.solve_static();
-      REQUIRE(finite(s));
-    }
-  }
+  const int started_at = tear_in_increments(s, tearing, held, pull, 14);
   CHECK(started_at == 11);
   REQUIRE(tearing.path().size() > 10);
   // Across the pull: each segment's direction's component along a, in the middle of the sheet
@@ -329,18 +330,7 @@ TEST_CASE("tearing: a crack along a node row or within the snap distance of one,
   s.fix(mesh.node_set("ymin"));
   const ConstraintHandle top = s.prescribe(mesh.node_set("ymax"), pull_up(0));
   Tearing<S> tearing(s, tear(strength));
-  int started_at = -1;
-  for (int k = 1; k <= 16; ++k) {
-    s.replace(top, pull_up(k * delta_star / 10.5));
-    s.solve_static();
-    for (int round = 0; round < 100; ++round) {
-      const TearReport r = tearing.update();
-      if (r.started) started_at = k;
-      if (!r.started && r.grown == 0) break;
-      s.solve_static();
-      REQUIRE(finite(s));
-    }
-  }
+  const int started_at = tear_in_increments(s, tearing, top, pull_up, 16);
   Scalar lo = W, hi = 0;
   for (const Vec3& p : tearing.path()) lo = std::min(lo, p.x()), hi = std::max(hi, p.x());
   INFO("path of " << tearing.path().size() << " points, x in [" << lo << ", " << hi << "]");
