@@ -3,6 +3,7 @@
 // the free-fall tests of X-FEM (test_enrichment.cpp, test_plastic_cut.cpp): integrated over the
 // mass points of the cut elements' pieces above the cut (side 0) and of the elements wholly
 // beyond it, with the mesh's densities (the mass matrix's). Returns (volume, z of the centre).
+// And the momentum of that piece (free_piece_momentum), for the tests of loads on a cut body.
 #include <plastifem/enrichment/cut_element.hpp>
 #include <plastifem/plastifem.hpp>
 
@@ -40,4 +41,29 @@ std::pair<plastifem::Scalar, plastifem::Scalar> free_piece_centre(const S& s, pl
     }
   }
   return {m, mz / m};
+}
+
+/// The momentum along d of the piece x > xc of a bar cut through by one cut (its first): r_d^T M v
+/// with r_d the piece's rigid translation along d in the dofs (a node's enriched dof takes the
+/// value that makes its field 1 on the free side and 0 on the other). With the body held on the
+/// other piece only, it grows by exactly F dt per step under a force F on the free piece
+/// (f_int does no work on a rigid translation of a piece, r_d is zero where the body is held,
+/// and Newmark's update keeps r^T M v - t r^T f_ext), to the solves' residuals.
+template <class S>
+plastifem::Scalar free_piece_momentum(const S& s, plastifem::Scalar xc, int d) {
+  using namespace plastifem;
+  using Enrich = typename S::EnrichmentPolicy;
+  const auto& mesh = s.mesh();
+  const auto& en = s.enrichment();
+  Vector r = Vector::Zero(s.num_dofs());
+  for (Index i = 0; i < mesh.num_nodes(); ++i) {
+    if (const Index row = en.row(0, i); row >= 0) {
+      const Scalar h = en.sign(0, i), free = Enrich::psi(1, h), held = Enrich::psi(-1, h);
+      r[3 * row + d] = 1 / (free - held);
+      r[3 * i + d] = -held / (free - held);
+    } else {
+      r[3 * i + d] = mesh.node(i).x() > xc;
+    }
+  }
+  return r.dot(s.mass_matrix() * s.velocity());
 }

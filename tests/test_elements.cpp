@@ -120,6 +120,25 @@ TEST_CASE("hexahedron Gauss rules are exact to their degree and not above", "[qu
   check_hex_rule(hex_gauss<3>());
 }
 
+TEST_CASE("the face pieces' triangle rule is exact to degree 4 and not above", "[quadrature]") {
+  // On the unit triangle {s, t >= 0, s + t <= 1}, s^a t^b integrates to a! b! / (a + b + 2)!.
+  // The rule is called on a triangle of the reference element, p0 + s e1 + t e2: checked on the
+  // unit triangle's own map, and its weights on the mapped area |e1 x e2| / 2.
+  auto integrate = [](int a, int b) {
+    Scalar sum = 0;
+    for_each_triangle_point(Vec3::Zero(), Vec3::UnitX(), Vec3::UnitY(), [&](const Vec3& x, const Vec3&, const Vec3&, Scalar w) {
+      sum += w * std::pow(x.x(), a) * std::pow(x.y(), b);
+    });
+    return sum;
+  };
+  auto exact = [](int a, int b) { return factorial(a) * factorial(b) / factorial(a + b + 2); };
+  for (int a = 0; a <= 4; ++a)
+    for (int b = 0; a + b <= 4; ++b) REQUIRE(integrate(a, b) == Approx(exact(a, b)).epsilon(1e-14));
+  Scalar worst = 0;
+  for (int a = 0; a <= 5; ++a) worst = std::max(worst, std::abs(integrate(a, 5 - a) / exact(a, 5 - a) - 1));
+  REQUIRE(worst > 1e-6);
+}
+
 TEMPLATE_LIST_TEST_CASE("shape functions: partition of unity, Kronecker property, FD gradients",
                         "[element]", AllElements) {
   using E = TestType;
@@ -274,7 +293,7 @@ TEMPLATE_LIST_TEST_CASE("element traits: containment, faces, sub-tetrahedra and 
         const int node = E::faces[static_cast<size_t>(f)][static_cast<size_t>(k)];
         REQUIRE((k < face_corners(kind)) == (node < E::num_vertices));
       }
-      Loads<E>::for_each_face_point(f, [&](const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) {
+      for_each_face_point<E>(f, [&](const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) {
         const Vec3 n_dA = w * ds.cross(dt);
         n_total += n_dA;
         volume += xi.dot(n_dA) / 3;

@@ -1049,25 +1049,8 @@ TEST_CASE("X-FEM: a nodal or point force on a cut body loads its own piece only,
     const int steps = 10;
     const Scalar dt = 0.01;
     for (int k = 0; k < steps; ++k) s.step(dt);
-    // The free piece's momentum r_d^T M v, r_d its translation along d: it grows by exactly F dt
-    // per step (f_int does no work on a rigid translation of a piece, r_d is zero where the
-    // body is held, and Newmark's update keeps r^T M v - t r^T f_ext), to the solves' residuals.
-    const SparseMatrix M = s.mass_matrix();
-    const auto& en = s.enrichment();
-    for (int d = 0; d < 3; ++d) {
-      Vector r = Vector::Zero(s.num_dofs());
-      for (Index i = 0; i < mesh.num_nodes(); ++i) {
-        if (const Index row = en.row(0, i); row >= 0) {  // value 1 on the free side, 0 on the other
-          const Scalar h = en.sign(0, i), free = Enrich::psi(1, h), held = Enrich::psi(-1, h);
-          r[3 * row + d] = 1 / (free - held);
-          r[3 * i + d] = -held / (free - held);
-        } else {
-          r[3 * i + d] = mesh.node(i).x() > 3.5;
-        }
-      }
-      const Scalar momentum = r.dot(M * s.velocity());
-      CHECK(std::abs(momentum - F[d] * steps * dt) <= 1e-6 * F.norm() * steps * dt);
-    }
+    for (int d = 0; d < 3; ++d)  // the free piece's momentum grows by F dt per step (free_piece.hpp)
+      CHECK(std::abs(free_piece_momentum(s, 3.5, d) - F[d] * steps * dt) <= 1e-6 * F.norm() * steps * dt);
     // The held piece has no load, and a consistent mass couples the fields across the cut only
     // by its quadrature error: Hex8's pieces take a degree-5 mass rule where degree 6 is exact
     // (docs/xfem.md), measured 1.0e-6 to 6.3e-6 of the free piece's motion, with a direct solve
@@ -1109,6 +1092,63 @@ TEST_CASE("X-FEM: a nodal or point force on a cut body loads its own piece only,
     CHECK(at0.norm() <= 1e-8 * F.norm());
   };
   for (bool point : {false, true}) statics(Heaviside{}, point), statics(ShiftedHeaviside{}, point);
+}
+
+TEST_CASE("X-FEM: a traction on a face the cut crosses loads each piece with its part of the face, in every mode",
+          "[enrichment]") {
+  // A traction does work on the field over its face, and each piece of a face the cut crosses
+  // carries its own part. Until 2026-12-01 the traction loaded the standard dofs only, which on
+  // this bar gave the free piece 2.50 of the 2.65 below, with either enrichment.
+  // The bar 6 x 1 x 1 cut through by the oblique plane x + 0.3 z = 3.5, which crosses the top face
+  // y = 1 from x = 3.5 (z = 0) to x = 3.2 (z = 1), with the traction t on that face: the piece
+  // beyond the cut carries t times its part of the face, int_0^1 (6 - 3.5 + 0.3 z) dz = 2.65.
+  const Vec3 t(0.3, -0.5, 0.2);
+  const CutPlane plane(Vec3(3.5, 0, 0), Vec3(1, 0, 0.3));
+  const Scalar free_area = 2.65, area = 6;
+  const Mesh<Hex8> bar = bar_mesh<Hex8>(6, 1, 1);
+  auto run = [&]<class Enrich>(Enrich, NewmarkMode mode, MassKind mass) {
+    INFO((std::is_same_v<Enrich, Heaviside> ? "Heaviside" : "shifted")
+         << (mode == NewmarkMode::RealTime ? ", real time" : ", accurate")
+         << (mass == MassKind::Lumped ? ", lumped" : ", consistent"));
+    SolverSettings settings;
+    settings.newmark.mode = mode;
+    settings.mass = mass;
+    Solver<Hex8, Corotational, NoPlasticity, Enrich> s(bar, Material{3000, 0.45, 1.0}, settings);
+    s.fix(bar.node_set("xmin"));
+    s.cut(plane);
+    s.add_traction(bar.face_set("ymax"), t);
+    const int steps = 10;
+    const Scalar dt = 0.01;
+    for (int k = 0; k < steps; ++k) s.step(dt);
+    for (int d = 0; d < 3; ++d)  // the free piece's momentum grows by F dt per step (free_piece.hpp)
+      CHECK(std::abs(free_piece_momentum(s, 3.5, d) - free_area * t[d] * steps * dt) <= 1e-6 * t.norm() * steps * dt);
+  };
+  for (NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime})
+    for (MassKind mass : {MassKind::Consistent, MassKind::Lumped}) run(Heaviside{}, mode, mass), run(ShiftedHeaviside{}, mode, mass);
+  // Statics, both ends held: each end carries its piece's part, on every element's faces (Hex8's
+  // quadrilaterals, Tet4's and Tet10's triangles; Tet10's mid-edge nodes at x = 3.5, z = 0 lie on the cut).
+  auto statics = [&]<class E, class Enrich>(const Mesh<E>& mesh, Enrich) {
+    INFO(E::name << (std::is_same_v<Enrich, Heaviside> ? ", Heaviside" : ", shifted"));
+    SolverSettings settings;
+    settings.newton.residual_tolerance = 1e-10;  // reactions to 1e-8 of the load (1e-6 left 4e-8 on Tet4)
+    Solver<E, Corotational, NoPlasticity, Enrich> s(mesh, Material{3000, 0.45, 1.0}, settings);
+    s.fix(mesh.node_set("xmin"));
+    s.fix(mesh.node_set("xmax"));
+    s.cut(plane);
+    s.add_traction(mesh.face_set("ymax"), t);
+    s.solve_static();
+    const Vector R = s.reaction_forces();
+    Vec3 at0 = Vec3::Zero(), at6 = Vec3::Zero();
+    for (Index i : mesh.node_set("xmin")) at0 += R.segment<3>(3 * i);
+    for (Index i : mesh.node_set("xmax")) at6 += R.segment<3>(3 * i);
+    CHECK((at6 + free_area * t).norm() <= 1e-8 * t.norm());
+    CHECK((at0 + (area - free_area) * t).norm() <= 1e-8 * t.norm());
+  };
+  const Mesh<Tet4> tet4 = bar_mesh<Tet4>(6, 1, 1);
+  const Mesh<Tet10> tet10 = bar_mesh<Tet10>(6, 1, 1);
+  statics(bar, Heaviside{}), statics(bar, ShiftedHeaviside{});
+  statics(tet4, Heaviside{}), statics(tet4, ShiftedHeaviside{});
+  statics(tet10, Heaviside{}), statics(tet10, ShiftedHeaviside{});
 }
 
 TEST_CASE("X-FEM: Heaviside enrichment holds the enriched dofs of constrained nodes", "[enrichment]") {

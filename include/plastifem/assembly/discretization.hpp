@@ -216,6 +216,16 @@ class Discretization {
       for (size_t j = 0; j < f.size(); ++j) F.template segment<3>(3 * c.enriched[j].row) += f[j];
     }
   }
+  /// The enriched dofs' share of a traction t on a face (enrichment/cut_element.hpp), added
+  /// into F; nothing if the face's element has no enriched dofs.
+  void add_enriched_traction(FaceRef face, const Vec3& t, Vector& F) const
+    requires Enriched
+  {
+    const CutElement<E>* c = enrichment_.element(face.element);
+    if (!c) return;
+    const auto f = c->enriched_traction(mesh_.element_nodes(face.element), face.face, t);
+    for (size_t j = 0; j < f.size(); ++j) F.template segment<3>(3 * c->enriched[j].row) += f[j];
+  }
 
   /// Says where a non-finite force comes from: the first element whose force is not finite,
   /// and whether it is inverted (det F <= 0 at a quadrature point, outside the domain of

@@ -248,4 +248,54 @@ Scalar element_volume(const ElementNodes<E>& X) {
   return v;
 }
 
+/// Calls f(xi, dxi/ds, dxi/dt, weight) at the quadrature points of local face `face`, mapped
+/// into the reference element, by the face's kind. Tri faces: 3-point degree-2 rule (exact
+/// for Tet10's quadratic N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a
+/// times a bilinear dA).
+template <FiniteElement E, class F>
+void for_each_face_point(int face, F&& f) {
+  const auto Xref = E::reference_nodes();
+  const auto& fn = E::faces[static_cast<size_t>(face)];
+  if constexpr (E::nodes_per_face >= 4) {  // an element with quadrilateral faces
+    if (face_corners(E::face_shape(face)) == 4) {
+      const Scalar g = 0.57735026918962576451;
+      for (Scalar s : {-g, g})
+        for (Scalar t : {-g, g}) {
+          // Bilinear map of the reference face corners (flat faces of the reference cube).
+          const Scalar Ns[4] = {(1 - s) * (1 - t) / 4, (1 + s) * (1 - t) / 4, (1 + s) * (1 + t) / 4,
+                                (1 - s) * (1 + t) / 4};
+          const Scalar dNs[4] = {-(1 - t) / 4, (1 - t) / 4, (1 + t) / 4, -(1 + t) / 4};
+          const Scalar dNt[4] = {-(1 - s) / 4, -(1 + s) / 4, (1 + s) / 4, (1 - s) / 4};
+          Vec3 xi = Vec3::Zero(), ds = Vec3::Zero(), dt = Vec3::Zero();
+          for (int k = 0; k < 4; ++k) {
+            xi += Ns[k] * Xref.col(fn[k]);
+            ds += dNs[k] * Xref.col(fn[k]);
+            dt += dNt[k] * Xref.col(fn[k]);
+          }
+          f(xi, ds, dt, 1.0);
+        }
+      return;
+    }
+  }
+  // Triangles: Strang-Fix 3-point rule on the unit triangle (area 1/2), degree 2.
+  const Scalar pts[3][2] = {{1.0 / 6, 1.0 / 6}, {2.0 / 3, 1.0 / 6}, {1.0 / 6, 2.0 / 3}};
+  const Vec3 p0 = Xref.col(fn[0]), e1 = Xref.col(fn[1]) - p0, e2 = Xref.col(fn[2]) - p0;
+  for (const auto& p : pts) f(Vec3(p0 + p[0] * e1 + p[1] * e2), e1, e2, 1.0 / 6);
+}
+
+/// Calls f(xi, dxi/ds, dxi/dt, weight) at the points of Dunavant's 6-point degree-4 rule on the
+/// triangle p0 + s e1 + t e2 (s, t >= 0, s + t <= 1) of the reference element: exact for a
+/// bilinear N_a times the bilinear area element of a flat Hex8 face, on any triangle of it (a
+/// face cut into pieces, enrichment/cut_element.hpp).
+template <class F>
+void for_each_triangle_point(const Vec3& p0, const Vec3& e1, const Vec3& e2, F&& f) {
+  // (D. A. Dunavant, IJNME 21, 1985, table for p = 4): two orbits of three points, weights for
+  // the unit triangle's area 1/2.
+  const Scalar a = 0.445948490915964886318, wa = 0.223381589678011465945 / 2;
+  const Scalar b = 0.091576213509770743460, wb = 0.109951743655321867389 / 2;
+  const Scalar pts[6][3] = {{a, a, wa}, {1 - 2 * a, a, wa}, {a, 1 - 2 * a, wa},
+                            {b, b, wb}, {1 - 2 * b, b, wb}, {b, 1 - 2 * b, wb}};
+  for (const auto& p : pts) f(Vec3(p0 + p[0] * e1 + p[1] * e2), e1, e2, p[2]);
+}
+
 }  // namespace plastifem

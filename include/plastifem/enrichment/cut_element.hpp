@@ -61,7 +61,7 @@ struct CutElement {
   std::array<std::vector<Vec3>, 2> mass_xi;            ///< mass rule per side: reference points
   std::array<std::vector<Scalar>, 2> mass_dv;          ///< and their w det J
   std::array<Scalar, 2> volume{0, 0};                  ///< rest volume of each side
-  std::array<std::vector<ReferenceTet>, 2> pieces;     ///< the sides' pieces (reference coordinates), for output
+  std::array<std::vector<ReferenceTet>, 2> pieces;     ///< the sides' pieces (reference coordinates): output, points, faces
   std::vector<EnrichedDof> enriched;                   ///< in the order of the element's extension rows
 
   int span() const { return N + static_cast<int>(enriched.size()); }
@@ -182,6 +182,49 @@ struct CutElement {
           F[k] += density * mass_dv[s][q] * enriched[k].psi[s] * Nq[enriched[k].node] * g;
       }
     return F;
+  }
+
+  /// The enriched dofs' share of a traction t (per unit reference area) on local face `face` of
+  /// rest shape X: int_face N_a psi_k t dA per enriched dof k (at node a), over each side's part
+  /// of the face with that side's psi (for_each_face_point_by_side).
+  std::vector<Vec3> enriched_traction(const ElementNodes<E>& X, int face, const Vec3& t) const {
+    std::vector<Vec3> F(enriched.size(), Vec3::Zero());
+    for_each_face_point_by_side(face, [&](int s, const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) {
+      const Mat3 J = jacobian<E>(X, xi);
+      const Scalar dA = (J * ds).cross(J * dt).norm();
+      const auto Nxi = E::shape(xi);
+      for (size_t k = 0; k < enriched.size(); ++k) F[k] += (w * dA * Nxi[enriched[k].node] * enriched[k].psi[s]) * t;
+    });
+    return F;
+  }
+
+  /// Calls f(s, xi, dxi/ds, dxi/dt, weight) at quadrature points of local face `face` (reference
+  /// coordinates), each on its side s. A blending element's face is one side, with the face's
+  /// own rule; a cut element's face is split where the cut crosses it, into the triangles of
+  /// its sides' pieces that lie on it (the pieces partition the element, so these partition
+  /// the face), each with the degree-4 triangle rule.
+  template <class F>
+  void for_each_face_point_by_side(int face, F&& f) const {
+    if (num_sides == 1)
+      return for_each_face_point<E>(face, [&](const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) { f(0, xi, ds, dt, w); });
+    // The reference face's plane n . xi = c (reference faces are flat); a piece's vertex on it
+    // is a corner or lies on an edge of the face, off it by round-off only.
+    const auto Xref = E::reference_nodes();
+    const auto& fn = E::faces[static_cast<size_t>(face)];
+    const Vec3 n = (Xref.col(fn[1]) - Xref.col(fn[0])).cross(Xref.col(fn[2]) - Xref.col(fn[0])).normalized();
+    const Scalar c = n.dot(Xref.col(fn[0]));
+    const Scalar tol = 1e-12;
+    for (int s = 0; s < num_sides; ++s)
+      for (const ReferenceTet& p : pieces[s])
+        for (int skip = 0; skip < 4; ++skip) {  // the piece's face opposite vertex `skip`
+          std::array<Vec3, 3> v;
+          for (int k = 0, j = 0; k < 4; ++k)
+            if (k != skip) v[static_cast<size_t>(j++)] = p[static_cast<size_t>(k)];
+          if (std::abs(n.dot(v[0]) - c) > tol || std::abs(n.dot(v[1]) - c) > tol || std::abs(n.dot(v[2]) - c) > tol)
+            continue;
+          for_each_triangle_point(v[0], Vec3(v[1] - v[0]), Vec3(v[2] - v[0]),
+                                  [&](const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) { f(s, xi, ds, dt, w); });
+        }
   }
 
  private:

@@ -6,9 +6,9 @@
 // depends on changes: the dof map (the vector grows with it) and, for body forces, the mass
 // kind, since a body force must pair with the mass matrix for a free body to fall at exactly g
 // (assembly/mass.hpp: consistent loads with the consistent mass, M_L g with the lumped one).
-// In a cut body (X-FEM) a nodal force, a point force and a body force also load the enriched
-// dofs, as the force's work on the field at its point asks (EnrichedLoads); a traction on a
-// face a cut crosses loads the standard dofs only (the face is not split: docs/xfem.md).
+// In a cut body (X-FEM) every load also loads the enriched dofs, as the force's work on the
+// field at its point asks (EnrichedLoads): a traction on a face the cut crosses is integrated
+// over each piece of the face on its own side.
 #include <plastifem/assembly/mass.hpp>
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/solver/boundary.hpp>
@@ -25,6 +25,7 @@ struct EnrichedLoads {
   std::function<void(const Vec3& g, MassKind, Vector& F)> body;          ///< gravity g, integrated per piece
   std::function<void(Index node, const Vec3& f, Vector& F)> node;        ///< f at a node, on its own side
   std::function<void(Index e, const Vec3& xi, const Vec3& f, Vector& F)> point;  ///< f at xi in element e
+  std::function<void(FaceRef face, const Vec3& t, Vector& F)> traction;         ///< t on a face, per piece
   explicit operator bool() const { return bool(body); }
 };
 
@@ -176,6 +177,8 @@ class Loads {
       if (enriched) enriched.body(b->g, mass, F);
     } else if (const auto* tr = std::get_if<Traction>(&l.def)) {
       F.head(3 * mesh.num_nodes()) = traction_load(mesh, tr->faces, tr->t);
+      if (enriched)
+        for (const FaceRef& f : tr->faces) enriched.traction(f, tr->t, F);
     }
     l.force = std::move(F);
   }
@@ -189,7 +192,7 @@ class Loads {
     Vector F = Vector::Zero(3 * mesh.num_nodes());
     for (const FaceRef& f : faces) {
       const ElementNodes<E> X = mesh.element_nodes(f.element);
-      for_each_face_point(f.face, [&](const Vec3& xi, const Vec3& dxi_ds, const Vec3& dxi_dt, Scalar w) {
+      for_each_face_point<E>(f.face, [&](const Vec3& xi, const Vec3& dxi_ds, const Vec3& dxi_dt, Scalar w) {
         const Mat3 J = jacobian<E>(X, xi);
         const Scalar dA = (J * dxi_ds).cross(J * dxi_dt).norm();
         const auto Nf = E::shape(xi);
@@ -197,41 +200,6 @@ class Loads {
       });
     }
     return F;
-  }
-
-  /// Calls f(xi, dxi/ds, dxi/dt, weight) at the quadrature points of local face `face`, mapped
-  /// into the reference element, by the face's kind. Tri faces: 3-point degree-2 rule (exact
-  /// for Tet10's quadratic N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a
-  /// times a bilinear dA).
-  template <class F>
-  static void for_each_face_point(int face, F&& f) {
-    const auto Xref = E::reference_nodes();
-    const auto& fn = E::faces[face];
-    if constexpr (E::nodes_per_face >= 4) {  // an element with quadrilateral faces
-      if (face_corners(E::face_shape(face)) == 4) {
-        const Scalar g = 0.57735026918962576451;
-        for (Scalar s : {-g, g})
-          for (Scalar t : {-g, g}) {
-            // Bilinear map of the reference face corners (flat faces of the reference cube).
-            const Scalar Ns[4] = {(1 - s) * (1 - t) / 4, (1 + s) * (1 - t) / 4, (1 + s) * (1 + t) / 4,
-                                  (1 - s) * (1 + t) / 4};
-            const Scalar dNs[4] = {-(1 - t) / 4, (1 - t) / 4, (1 + t) / 4, -(1 + t) / 4};
-            const Scalar dNt[4] = {-(1 - s) / 4, -(1 + s) / 4, (1 + s) / 4, (1 - s) / 4};
-            Vec3 xi = Vec3::Zero(), ds = Vec3::Zero(), dt = Vec3::Zero();
-            for (int k = 0; k < 4; ++k) {
-              xi += Ns[k] * Xref.col(fn[k]);
-              ds += dNs[k] * Xref.col(fn[k]);
-              dt += dNt[k] * Xref.col(fn[k]);
-            }
-            f(xi, ds, dt, 1.0);
-          }
-        return;
-      }
-    }
-    // Triangles: Strang-Fix 3-point rule on the unit triangle (area 1/2), degree 2.
-    const Scalar pts[3][2] = {{1.0 / 6, 1.0 / 6}, {2.0 / 3, 1.0 / 6}, {1.0 / 6, 2.0 / 3}};
-    const Vec3 p0 = Xref.col(fn[0]), e1 = Xref.col(fn[1]) - p0, e2 = Xref.col(fn[2]) - p0;
-    for (const auto& p : pts) f(Vec3(p0 + p[0] * e1 + p[1] * e2), e1, e2, 1.0 / 6);
   }
 
  private:

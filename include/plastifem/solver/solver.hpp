@@ -8,8 +8,7 @@
 //   state.hpp                    u, v, a, t, ...: a step is a transaction on a trial copy
 //   equation_of_motion.hpp       the operator: r = M a + D v + f_int(u) - f_ext, K, Kd, A
 //   newmark.hpp, newton.hpp      the formulas, and one Newton loop for every nonlinear solve
-//   dynamics.hpp, statics.hpp    the integrators: a Newmark step (accurate or real time), static
-//                                load stepping
+//   dynamics.hpp, statics.hpp    the integrators: Newmark steps (accurate, real time), statics
 //   step_control.hpp             automatic step cutting, commit only on success
 //   observables.hpp              forces, energies, reactions, tangent of a committed state
 //
@@ -268,7 +267,8 @@ class Solver {
       if (const auto& en = body_.enrichment(); body_.has_cuts())
         return {[this](const Vec3& g, MassKind kind, Vector& F) { body_.add_enriched_body_force(g, kind, F); },
                 [&en](Index i, const Vec3& f, Vector& F) { en.add_nodal_force(i, f, &Enrich::psi, F); },
-                [&en](Index e, const Vec3& xi, const Vec3& f, Vector& F) { en.add_point_force(e, xi, f, F); }};
+                [&en](Index e, const Vec3& xi, const Vec3& f, Vector& F) { en.add_point_force(e, xi, f, F); },
+                [this](FaceRef f, const Vec3& t, Vector& F) { body_.add_enriched_traction(f, t, F); }};
     }
     return {};
   }
