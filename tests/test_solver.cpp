@@ -1019,6 +1019,42 @@ TEMPLATE_TEST_CASE("a settled body is accepted by every later solve: static solv
   CHECK((s.displacement() - u2).norm() <= 1e-10 * u2.norm());  // and the steps leave it there
 }
 
+TEST_CASE("a static solve from a state in motion ramps from the load its displacement balances statically",
+          "[solver][statics]") {
+  // Statics ramp the load from the one the state balances. After a step the state's load is
+  // f_ext(t), balanced with M a + D v; ramping from it asked every fraction of the ramp for the
+  // whole load at once, and the solve failed at fraction 5e-5 after 10 cuts though the body had
+  // moved by 7e-11 (found by review, 2026-12-01). It now starts from f_int(u): the same ramp as
+  // from rest, so the same increments (the 20 asked, cut to 80) and the same equilibrium
+  // (elastic, so path independent, to the Newton tolerance's effect: 1e-6 of the load over a
+  // stiffness ~E h).
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(8, 1, 1);
+  for (NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime}) {
+    INFO((mode == NewmarkMode::Accurate ? "accurate" : "real time"));
+    SolverSettings st;
+    st.newmark.mode = mode;
+    st.newton.max_iterations = 6;
+    auto loaded = [&] {
+      Solver<Hex8, NeoHookean> s(mesh, Material{3000, 0.45, 1.0}, st);
+      s.fix(mesh.node_set("xmin"));
+      s.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 20, 0));
+      return s;
+    };
+    Solver<Hex8, NeoHookean> rest = loaded(), moving = loaded();
+    const StepReport from_rest = rest.solve_static(20);
+    moving.step(1e-6);
+    REQUIRE(moving.displacement().norm() > 0);
+    REQUIRE(moving.velocity().norm() > 0);
+    StepReport from_motion;
+    REQUIRE(error_of([&] { from_motion = moving.solve_static(20); }) == "(no error)");
+    CHECK(from_motion.load_steps == from_rest.load_steps);
+    const Vector& u = rest.displacement();
+    CHECK(u.norm() > 1);  // a large deflection: the tip moves by about 4.4
+    CHECK((moving.displacement() - u).norm() <= 1e-6 * u.norm());
+    CHECK(moving.velocity().norm() == 0);
+  }
+}
+
 namespace {
 // A nonlinear problem written outside the library, to show what newton() asks of one
 // (NewtonProblem): r(u) = A u + u.^3 - b, the gradient of Pi(u) = u'Au/2 + sum u_i^4/4 - b'u,

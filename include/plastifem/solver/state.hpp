@@ -12,7 +12,8 @@
 //              settings it was solved with. A step uses a as a_n only while they are the
 //              solver's current ones, else solves it from equilibrium: a change of the loads,
 //              the constraints, the mass or the damping needs no one to remember to forget a;
-//   load       the external force the state is balanced with (statics continue from it);
+//   load       the external force the state is balanced with, statically or with M a + D v
+//              (statics continue from it, or from f_int(u) for a state in motion);
 //   warm_start the first Newton increment of the last step and its dt (the next step's CG
 //              start), and in real-time mode the one before (linear extrapolation of the two,
 //              when both steps had the current dt: 7-13% fewer CG iterations);
