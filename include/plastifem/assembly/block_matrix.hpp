@@ -177,11 +177,13 @@ class BlockSymmetricMatrix {
     }
   }
 
-  /// Sum of all entries of the full symmetric matrix.
-  Scalar sum() const {
+  /// Sum of the entries of the full symmetric matrix's leading `block_rows` x `block_rows` blocks
+  /// (all of it by default).
+  Scalar sum(Index block_rows = -1) const {
     Scalar s = 0;
     const auto& p = *pattern_;
-    for (Index I = 0; I < p.num_block_rows; ++I)
+    const Index rows = block_rows < 0 ? p.num_block_rows : std::min(block_rows, p.num_block_rows);
+    for (Index I = 0; I < rows; ++I)  // lower triangle: column <= I
       for (int k = p.row_start[I]; k < p.row_start[I + 1]; ++k) {
         Scalar b = 0;
         for (int q = 0; q < 9; ++q) b += values_[9 * static_cast<size_t>(k) + q];

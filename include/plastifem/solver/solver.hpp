@@ -186,8 +186,8 @@ class Solver {
   Scalar external_work_potential() const;
   /// Deformed volume.
   Scalar volume() const;
-  /// Total mass, 1^T M 1 per direction.
-  Scalar mass() const { return system_.M.sum() / 3; }
+  /// Total mass, r^T M r per direction, r a rigid translation (the standard dofs; a cut's zero).
+  Scalar mass() const { return system_.M.sum(mesh().num_nodes()) / 3; }
   /// Reaction forces at constrained dofs: f_int + M a + D v - f_ext (zero elsewhere), with the
   /// path's v and a at the constrained dofs and D's stiffness the projected tangent at the
   /// current state.
