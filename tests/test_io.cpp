@@ -621,6 +621,10 @@ TEST_CASE("gmsh reader errors name the file and line", "[io][gmsh]") {
     const std::string entities = "$Entities\n0 0 0 1\n1 0 0 0 1 1 1 0 0\n$EndEntities\n";
     CHECK(contains(msg("entity.msh", fmt41 + entities + nodes41 + "$Elements\n1 1 1 1\n3 2 4 1\n1 1 2 3 4\n$EndElements\n"),
                    "io_entity.msh:22: element block of entity (dim 3, tag 2), which $Entities does not list"));
+    // A volume element in a block of a surface entity was skipped as a boundary part.
+    const std::string entities2 = "$Entities\n0 0 1 1\n1 0 0 0 1 1 1 0 0\n1 0 0 0 1 1 1 0 0\n$EndEntities\n";
+    CHECK(contains(msg("blockdim.msh", fmt41 + entities2 + nodes41 + "$Elements\n1 1 1 1\n2 1 4 1\n1 1 2 3 4\n$EndElements\n"),
+                   "io_blockdim.msh:23: element block of entity dimension 2 holds 4-node tetrahedron elements (Gmsh type 4), which are 3D"));
     const Mesh<Tet4> m =
         io::read_gmsh<Tet4>(write_text("ok41.msh", fmt41 + entities + nodes41 + "$Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n"));
     CHECK(m.num_elements() == 1);

@@ -361,6 +361,11 @@ class GmshParser {
         }
       }
       const auto info = gmsh_type_info(type);
+      // A block's entityDim decides whether its elements are cells or boundary parts: a known
+      // type of another dimension would be skipped (or taken as a face) silently.
+      if (info && info->dim != dim)
+        s_.fail(fmt::format("element block of entity dimension {} holds {} elements (Gmsh type {}), which are {}D",
+                            dim, info->name, type, info->dim));
       for (size_t i = 0; i < m; ++i) {
         const auto e = data_line("Elements", fmt::format("element {} of {} in this block 'tag nodes...'", i + 1, m));
         if (e.size() < 2 || (info && e.size() != 1 + static_cast<size_t>(info->nodes)))
