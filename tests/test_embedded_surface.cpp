@@ -242,7 +242,14 @@ TEST_CASE("surface files: STL binary and ASCII, malformed OBJ and STL named by l
   ascii += "endsolid cube\n";
   write_text(d / "cube_ascii.stl", ascii);
   write_text(d / "cube_binary.STL", binary);
-  for (const char* name : {"cube_ascii.stl", "cube_binary.STL"}) {
+  // Two solids, the cube's bottom half of the facets and its top half (as a CAD exporter writes
+  // the parts of one body): one surface, the shared corners merged.
+  std::string two_solids = ascii;
+  size_t split = 0;
+  for (int k = 0; k < 6; ++k) split = two_solids.find("endfacet\n", split) + 9;  // after the 6th facet
+  two_solids.insert(split, "endsolid bottom\nsolid top\n");
+  write_text(d / "cube_two_solids.stl", two_solids);
+  for (const char* name : {"cube_ascii.stl", "cube_binary.STL", "cube_two_solids.stl"}) {
     const TriangleSurface s = io::read_surface(d / name);
     INFO(name);
     CHECK(s.num_vertices() == 8);
@@ -263,6 +270,14 @@ TEST_CASE("surface files: STL binary and ASCII, malformed OBJ and STL named by l
   CHECK(read_error(d / "no_faces.obj").find("no faces") != std::string::npos);
   write_text(d / "short_facet.stl", "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\n");
   CHECK(read_error(d / "short_facet.stl").find("short_facet.stl:6: a facet needs 3 vertices, got 2") != std::string::npos);
+  const std::string facet = "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\n";
+  write_text(d / "nested.stl", "solid a\n" + facet + "solid b\n" + facet + "endsolid b\n");
+  CHECK(read_error(d / "nested.stl").find("nested.stl:9: 'solid' inside a solid (the last one's 'endsolid' is missing)") !=
+        std::string::npos);
+  write_text(d / "after_end.stl", "solid a\n" + facet + "endsolid a\n" + facet);
+  CHECK(read_error(d / "after_end.stl").find("after_end.stl:10: expected 'solid' after 'endsolid'") != std::string::npos);
+  write_text(d / "end_in_facet.stl", "solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nendsolid a\n");
+  CHECK(read_error(d / "end_in_facet.stl").find("end_in_facet.stl:5: 'endsolid' inside a facet") != std::string::npos);
   write_text(d / "unclosed.stl", "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n");
   CHECK(read_error(d / "unclosed.stl").find("ends inside a facet") != std::string::npos);
   std::string nan_binary = binary;

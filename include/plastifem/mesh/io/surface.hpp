@@ -5,7 +5,8 @@
 // OBJ: `v x y z [w]` vertices and `f` faces of 1-based (or negative, relative) indices written
 // i, i/t, i//n or i/t/n; a polygon of k vertices becomes k - 2 triangles (a fan); other
 // statements (vn, vt, o, g, s, usemtl, ...) are skipped. STL: binary when the file is exactly
-// 84 + 50 n bytes for the n its header gives, else ASCII; its facets carry their corners, so
+// 84 + 50 n bytes for the n its header gives, else ASCII, where several solids one after the
+// other (as CAD exporters write the parts of one body) are one surface; facets carry their corners, so
 // corners with identical coordinates are merged into one vertex, and a facet that collapses to a
 // repeated vertex (a zero-area sliver of the exporter) is dropped with a note.
 // Malformed input throws IoError "file:line: what was expected" (binary STL: the facet number).
@@ -101,9 +102,9 @@ inline TriangleSurface read_stl(const std::filesystem::path& file) {
         }
       facets.push_back(c);
     }
-  } else {  // ASCII: solid, then facets of "outer loop", three "vertex" lines, "endloop"
+  } else {  // ASCII: solids of facets of "outer loop", three "vertex" lines, "endloop"
     size_t line_no = 0, pos = 0;
-    bool solid = false;
+    bool solid = false, solids = false;
     std::array<Vec3, 3> c;
     int corners = -1;  // -1: outside a loop
     while (pos <= text.size()) {
@@ -114,8 +115,14 @@ inline TriangleSurface read_stl(const std::filesystem::path& file) {
       const auto tok = detail::split(line);
       const std::string where = fmt::format("{}:{}", path, line_no);
       if (!solid) {
-        if (tok[0] != "solid") fail<IoError>("{}: expected 'solid' (or a binary STL of 84 + 50 n bytes)", where);
-        solid = true;
+        if (tok[0] != "solid")
+          fail<IoError>("{}: expected 'solid'{}", where, solids ? " after 'endsolid'" : " (or a binary STL of 84 + 50 n bytes)");
+        solid = solids = true;
+      } else if (tok[0] == "solid") {
+        fail<IoError>("{}: 'solid' inside a solid (the last one's 'endsolid' is missing)", where);
+      } else if (tok[0] == "endsolid") {
+        if (corners >= 0) fail<IoError>("{}: 'endsolid' inside a facet", where);
+        solid = false;
       } else if (tok[0] == "outer") {
         if (corners >= 0) fail<IoError>("{}: 'outer loop' inside a loop", where);
         corners = 0;
@@ -126,7 +133,7 @@ inline TriangleSurface read_stl(const std::filesystem::path& file) {
       } else if (tok[0] == "endloop") {
         if (corners != 3) fail<IoError>("{}: a facet needs 3 vertices, got {}", where, std::max(corners, 0));
         facets.push_back(c), corners = -1;
-      } else if (tok[0] != "facet" && tok[0] != "endfacet" && tok[0] != "endsolid") {
+      } else if (tok[0] != "facet" && tok[0] != "endfacet") {
         fail<IoError>("{}: unexpected {} (facet, outer loop, vertex, endloop, endfacet or endsolid)", where,
                       detail::show(tok[0]));
       }
