@@ -248,6 +248,15 @@ Scalar element_volume(const ElementNodes<E>& X) {
   return v;
 }
 
+/// Area element dA = |(J dxi/ds) x (J dxi/dt)| at reference point xi of a face parametrised by
+/// (s, t), for an element of rest shape X: a face point's weight times it integrates over the
+/// rest face (for_each_face_point, for_each_triangle_point).
+template <FiniteElement E>
+Scalar face_area_element(const ElementNodes<E>& X, const Vec3& xi, const Vec3& dxi_ds, const Vec3& dxi_dt) {
+  const Mat3 J = jacobian<E>(X, xi);
+  return (J * dxi_ds).cross(J * dxi_dt).norm();
+}
+
 /// Calls f(xi, dxi/ds, dxi/dt, weight) at the quadrature points of local face `face`, mapped
 /// into the reference element, by the face's kind. Tri faces: 3-point degree-2 rule (exact
 /// for Tet10's quadratic N_a on flat faces); quad faces: 2x2 Gauss (exact for bilinear N_a

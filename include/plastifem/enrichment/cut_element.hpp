@@ -190,8 +190,7 @@ struct CutElement {
   std::vector<Vec3> enriched_traction(const ElementNodes<E>& X, int face, const Vec3& t) const {
     std::vector<Vec3> F(enriched.size(), Vec3::Zero());
     for_each_face_point_by_side(face, [&](int s, const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) {
-      const Mat3 J = jacobian<E>(X, xi);
-      const Scalar dA = (J * ds).cross(J * dt).norm();
+      const Scalar dA = face_area_element<E>(X, xi, ds, dt);
       const auto Nxi = E::shape(xi);
       for (size_t k = 0; k < enriched.size(); ++k) F[k] += (w * dA * Nxi[enriched[k].node] * enriched[k].psi[s]) * t;
     });
@@ -213,15 +212,14 @@ struct CutElement {
     const auto& fn = E::faces[static_cast<size_t>(face)];
     const Vec3 n = (Xref.col(fn[1]) - Xref.col(fn[0])).cross(Xref.col(fn[2]) - Xref.col(fn[0])).normalized();
     const Scalar c = n.dot(Xref.col(fn[0]));
-    const Scalar tol = 1e-12;
+    const auto on_face = [&](const Vec3& xi) { return std::abs(n.dot(xi) - c) <= 1e-12; };
     for (int s = 0; s < num_sides; ++s)
       for (const ReferenceTet& p : pieces[s])
         for (int skip = 0; skip < 4; ++skip) {  // the piece's face opposite vertex `skip`
           std::array<Vec3, 3> v;
           for (int k = 0, j = 0; k < 4; ++k)
             if (k != skip) v[static_cast<size_t>(j++)] = p[static_cast<size_t>(k)];
-          if (std::abs(n.dot(v[0]) - c) > tol || std::abs(n.dot(v[1]) - c) > tol || std::abs(n.dot(v[2]) - c) > tol)
-            continue;
+          if (!on_face(v[0]) || !on_face(v[1]) || !on_face(v[2])) continue;
           for_each_triangle_point(v[0], Vec3(v[1] - v[0]), Vec3(v[2] - v[0]),
                                   [&](const Vec3& xi, const Vec3& ds, const Vec3& dt, Scalar w) { f(s, xi, ds, dt, w); });
         }

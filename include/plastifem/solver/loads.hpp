@@ -193,8 +193,7 @@ class Loads {
     for (const FaceRef& f : faces) {
       const ElementNodes<E> X = mesh.element_nodes(f.element);
       for_each_face_point<E>(f.face, [&](const Vec3& xi, const Vec3& dxi_ds, const Vec3& dxi_dt, Scalar w) {
-        const Mat3 J = jacobian<E>(X, xi);
-        const Scalar dA = (J * dxi_ds).cross(J * dxi_dt).norm();
+        const Scalar dA = face_area_element<E>(X, xi, dxi_ds, dxi_dt);
         const auto Nf = E::shape(xi);
         for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * mesh.element(f.element)[a]) += w * dA * Nf[a] * t;
       });

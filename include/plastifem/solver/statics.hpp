@@ -113,11 +113,9 @@ class Statics {
     bool tangent_current() const { return tangent_now; }
     bool eager_tangent() const { return eager; }
     Scalar scale() const { return scale_; }
-    bool fell_back = false;  ///< the exact tangent was given up at an iterate (for the message)
     bool fall_back() {
       if (kind != TangentKind::Exact) return false;
       kind = TangentKind::Projected;
-      fell_back = true;
       return true;
     }
     /// Potential energy W(u) - f_ext . u at the last residual's u.
@@ -168,7 +166,7 @@ class Statics {
     if (!r.converged)
       fail<SolverError>("static Newton did not converge in {} iterations (|r| = {:.3g}, relative {:.3g}){}",
                         st.newton.max_iterations, r.residual, r.relative_residual,
-                        prob.fell_back ? "; the exact tangent was indefinite or did not descend on the way (an unstable "
+                        exact && prob.kind == TangentKind::Projected ? "; the exact tangent was indefinite or did not descend on the way (an unstable "
                                          "equilibrium, or a load past a limit point), and the projected tangent it "
                                          "went on with converges slowly at best there"
                                        : "");
