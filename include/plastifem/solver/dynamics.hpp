@@ -412,6 +412,7 @@ class Dynamics {
       FrozenTangent<Problem> frozen{prob};
       res = newton(frozen, u_, o, ResidualBacktracking{}, du_, u_new_);
     }
+    res.exact_tangent_dropped = use_exact(st) && prob.kind == TangentKind::Projected;
     const Scalar t1 = n.t + dt;
     if (!res.converged)
       fail<SolverError>("Newmark step at t = {} did not converge in {} Newton iterations (|r| = {:.3g}, relative "
@@ -531,12 +532,16 @@ class Dynamics {
     }
     first_increment_ = du_;
     u_ += du_;
+    const bool dropped = use_exact(st) && kind == TangentKind::Projected;
     // Beyond the linearisation's reach (NewmarkSettings::realtime_reach, if set), the step is
     // redone as an accurate one from n.
     linearisation_ = {};  // the accurate redo or the evaluation below writes K
     if (const Scalar reach = st.newmark.realtime_reach;
-        std::isfinite(reach) && !(edge_change(p, n.u, u_) <= reach))
-      return redone(p, n, trial, dt, serial, t0, lr.iterations);
+        std::isfinite(reach) && !(edge_change(p, n.u, u_) <= reach)) {
+      StepReport r = redone(p, n, trial, dt, serial, t0, lr.iterations);
+      r.exact_tangent_dropped = std::max(r.exact_tangent_dropped, int(dropped));  // one sub-step
+      return r;
+    }
     // The new state, evaluated: the check, the reported residual, and the next linearisation
     // (its tangent kept while within NewmarkSettings::tangent_reach of the kept one's state).
     const TangentKind next_kind = use_exact(st) ? TangentKind::Exact : TangentKind::Projected;
@@ -559,6 +564,7 @@ class Dynamics {
     StepReport rep;
     rep.newton_iterations = 1;
     rep.tangents_kept = keep_tangent;
+    rep.exact_tangent_dropped = dropped;
     rep.linear_iterations = lr.iterations;
     rep.residual = rnorm;
     rep.relative_residual = rnorm / std::max(scale, Scalar(1e-30));

@@ -92,6 +92,9 @@ struct NewtonResult {
   bool converged = false;
   bool linear_converged = true;
   Scalar linear_relative_residual = 0;
+  /// The exact tangent was given up on the way (set by the problem's owner, who holds the
+  /// tangent kind: Problem::fall_back).
+  bool exact_tangent_dropped = false;
 };
 
 /// A Newton solve into a step's report: its iterations are added, its end (residual, how it
@@ -105,6 +108,7 @@ inline void record(StepReport& rep, const NewtonResult& r) {
   rep.stagnated = rep.stagnated || r.convergence == Convergence::Stagnated;
   rep.linear_converged = rep.linear_converged && r.linear_converged;
   rep.linear_relative_residual = r.linear_relative_residual;
+  rep.exact_tangent_dropped += r.exact_tangent_dropped;
 }
 
 /// Backtracking on |r| along du (force-only evaluations): the full step if it decreases |r|,

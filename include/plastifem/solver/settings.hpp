@@ -123,6 +123,11 @@ struct StepReport {
   int predictor_retries = 0;     ///< dynamics: sub-steps redone from u_n after failing from the predictor
   int realtime_redone = 0;       ///< real time: sub-steps redone as accurate steps (NewmarkSettings::realtime_reach)
   int tangents_kept = 0;         ///< real time: sub-steps that kept their linearisation's tangent (NewmarkSettings::tangent_reach)
+  /// Sub-steps (statics: load increments) that gave up the exact tangent, indefinite or not a
+  /// descent direction, and went on with the projected one (NewtonSettings::exact_tangent): an
+  /// unstable equilibrium (a cut body's pieces, which have no contact), strong compression, or
+  /// a load near a limit point. Convergence there is linear at best.
+  int exact_tangent_dropped = 0;
   /// dynamics: constrained nodes whose prescribed path (or given velocity) jumps at the end of a
   /// (sub-)step, summed over sub-steps; their velocity and acceleration are the path's after
   /// the jump (Constraints::evaluate).
@@ -138,6 +143,7 @@ struct StepReport {
     predictor_retries += r.predictor_retries;
     realtime_redone += r.realtime_redone;
     tangents_kept += r.tangents_kept;
+    exact_tangent_dropped += r.exact_tangent_dropped;
     path_jumps += r.path_jumps;
     residual = r.residual;
     relative_residual = r.relative_residual;

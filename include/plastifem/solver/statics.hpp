@@ -162,11 +162,12 @@ class Statics {
     o.length = p.body.size();
     o.absolute_tolerance = 10 * p.system.rest_force_roundoff(p.body, p.threads);
     o.running_max_scale = false;  // the initial imbalance's and the current iterate's scale (NewtonOptions)
-    const NewtonResult r = newton(prob, u_, o, EnergyArmijo{}, du_, u_new_);
+    NewtonResult r = newton(prob, u_, o, EnergyArmijo{}, du_, u_new_);
+    r.exact_tangent_dropped = exact && prob.kind == TangentKind::Projected;
     if (!r.converged)
       fail<SolverError>("static Newton did not converge in {} iterations (|r| = {:.3g}, relative {:.3g}){}",
                         st.newton.max_iterations, r.residual, r.relative_residual,
-                        exact && prob.kind == TangentKind::Projected ? "; the exact tangent was indefinite or did not descend on the way (an unstable "
+                        r.exact_tangent_dropped ? "; the exact tangent was indefinite or did not descend on the way (an unstable "
                                          "equilibrium, or a load past a limit point), and the projected tangent it "
                                          "went on with converges slowly at best there"
                                        : "");
