@@ -42,9 +42,9 @@
 //    boundary through them).
 //  - Ties for the start (a uniform field) go to the middle of the tied elements.
 // The cut is rebuilt as a CutSurface of the whole path and applied with grow_cut: the grown
-// ribbon contains the old one, so what was cut stays cut (docs/xfem.md, "Tearing"). With a
-// plastic policy the path is kept in the rest configuration and mapped to the material one,
-// where cuts are applied, when the ribbon is built.
+// ribbon contains the old one, so what was cut stays cut (docs/xfem.md, "Tearing"). The path
+// is in the mesh's coordinates, where cuts are given, with a plastic policy too (a cut is a
+// material surface: docs/xfem.md, "Cutting plastic tissue").
 #include <plastifem/core/log.hpp>
 #include <plastifem/core/symmetric_eigen.hpp>
 #include <plastifem/enrichment/level_set.hpp>
@@ -381,23 +381,12 @@ class Tearing {
     return d;
   }
 
-  /// The ribbon swept along w through the path. Cuts are applied in the material configuration
-  /// (the rest one moved by plastic flow): each path point moves with its element's material
-  /// nodes, sum N_a(xi) Xbar_a (a point outside the body keeps its place).
+  /// The ribbon swept along w through the path (in the mesh's coordinates, as every cut: the
+  /// path was never moved by plastic flow, and the cut is not either).
   CutSurface ribbon(const std::deque<Vec3>& path) const {
     std::vector<Vec3> v;
     std::vector<std::array<Index, 3>> t;
-    [[maybe_unused]] Eigen::Matrix3Xd material;
-    if constexpr (S::PlasticPolicy::active) material = solver_->material_positions();
-    for (Vec3 p : path) {
-      if constexpr (S::PlasticPolicy::active) {
-        if (const auto at = locator_.locate(p)) {
-          const auto Nx = E::shape(at->xi);
-          Vec3 moved = Vec3::Zero();
-          for (int a = 0; a < E::num_nodes; ++a) moved += Nx[a] * material.col(solver_->mesh().element(at->element)[static_cast<size_t>(a)]);
-          p = moved;
-        }
-      }
+    for (const Vec3& p : path) {
       v.push_back(p - half_width_ * settings_.sweep), v.push_back(p + half_width_ * settings_.sweep);
     }
     for (Index i = 0; i + 1 < static_cast<Index>(path.size()); ++i) {
