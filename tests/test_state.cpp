@@ -241,6 +241,69 @@ TEST_CASE("restore: a state taken earlier, then the same steps, give the same ru
   CHECK(s.state() == now);
 }
 
+TEST_CASE("restore: a plastic table of another policy is refused; the current plastic parameters apply to it",
+          "[state][restore][plasticity]") {
+  // Found by review (2026-12-01). A CellCentered state (one flow point per element) restored into
+  // a VertexBlended solver of the same mesh (eight) was accepted, and the next flow read past the
+  // table's end (AddressSanitizer: heap-buffer-overflow). A state saved before set_plastic_params
+  // switched plastic rotation on came back without rotation entries, and the flow skipped
+  // rotation for good: 0 rotations yielded over a twist, 2361 for a solver built with them.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 2, 2);
+  PlasticParams base;
+  base.yield_stress = 1000, base.flow_rate = 0.4, base.stress_scale = 50;
+  PlasticParams more = base;
+  more.rotation_flow_rate = 1, more.rotation_yield = 0.01, more.kinematic_hardening = 0.5;
+  auto twist = [&](auto& s) {
+    s.fix(mesh.node_set("xmin"));
+    s.prescribe(mesh.node_set("xmax"), [](Scalar t, const Vec3& X) {
+      const Scalar a = 0.5 * std::min(t, 0.5);
+      const Vec3 c(X.x(), 1, 1), d = X - c;
+      return Vec3(c + Vec3(0, std::cos(a) * d.y() - std::sin(a) * d.z(), std::sin(a) * d.y() + std::cos(a) * d.z()) - X);
+    });
+    int rotations = 0;
+    for (int k = 0; k < 40; ++k) rotations += s.step(0.02).plastic.rotations_yielded;
+    return rotations;
+  };
+  using VB = Solver<Hex8, Corotational, VertexBlended>;
+  VB control(mesh, soft, {}, more);
+  const int expected = twist(control);
+  CHECK(expected > 100);  // measured 2361 (with a cut at x = 3; the review's case)
+  VB s(mesh, soft, {}, base);
+  const auto saved = s.state();
+  s.set_plastic_params(more);
+  s.restore(saved);
+  CHECK(s.state().plastic.tau_R.size() == control.state().plastic.tau_R.size());
+  CHECK(s.state().plastic.alpha.size() == control.state().plastic.alpha.size());
+  CHECK(twist(s) == expected);
+  CHECK((s.material_positions() - control.material_positions()).cwiseAbs().maxCoeff() == 0);
+  // Thresholds saved under another yield value shift to the current one, as set_plastic_params
+  // shifts them (plastic/plasticity.hpp: change_params).
+  VB shifted(mesh, soft, {}, base);
+  const auto at_1000 = shifted.state();
+  PlasticParams higher = base;
+  higher.yield_stress = 1200;
+  shifted.set_plastic_params(higher);
+  shifted.restore(at_1000);
+  CHECK(shifted.state().plastic.tau_origin == 1200);
+  CHECK(std::all_of(shifted.state().plastic.tau.begin(), shifted.state().plastic.tau.end(), [](Scalar t) { return t == 1200; }));
+  // Refused, the solver unchanged: another policy's table, a table that is not finite.
+  // (The policies' tables differ in their rotation entries: CellCentered has one per element.)
+  Solver<Hex8, Corotational, CellCentered> cell(mesh, soft, {}, more);
+  const auto now = s.state();
+  std::string message;
+  try {
+    s.restore(cell.state());
+  } catch (const InvalidArgument& e) {
+    message = e.what();
+  }
+  INFO(message);
+  CHECK(message.find("not this policy's: 192 thresholds, 24 rotation thresholds") != std::string::npos);
+  auto bad = now;
+  bad.plastic.tau[5] = std::numeric_limits<Scalar>::quiet_NaN();
+  CHECK_THROWS_AS(s.restore(bad), InvalidArgument);
+  CHECK(s.state() == now);
+}
+
 TEST_CASE("a moved-from solver refuses to change or step with a message, the moved-to one goes on", "[state]") {
   // A step on a moved-from solver read its empty members and crashed (found by review,
   // 2026-11-30).

@@ -11,6 +11,7 @@
 //                     (a flow stamps the table with the next of the Solver's serial numbers)
 //   after_increment   the flow after a converged static load increment (its share of static_time)
 //   on_cut            a cut's enriched elements stop flowing (docs/xfem.md)
+//   restored          a state handed to Solver::restore: checked, and given the current parameters
 //   constraints_changed, pattern_changed, set_params, rest_positions, material_positions
 //
 // The hooks see the body and the state only through their arguments, so a policy written in
@@ -58,6 +59,7 @@ class PlasticHooks {
   PlasticReport after_increment(const Body&, const Vector&, Scalar, State&, std::uint64_t&, int) { return {}; }
   template <class Enrichment>
   int on_cut(const Enrichment&, State&) { return 0; }
+  void restored(State&) {}
   template <class IsConstrained>
   void constraints_changed(Index, IsConstrained&&) {}
   void pattern_changed() {}
@@ -128,6 +130,16 @@ class PlasticHooks<Policy, E, Elastic, true> {
       s.off[e] = State::cut;
     }
     return frozen;
+  }
+  /// A state handed to Solver::restore: refused (InvalidArgument) if its table is not one this
+  /// engine keeps, where the engine says (an optional `check_table`: a state of another policy
+  /// on the same mesh has the same type); then the current parameters apply to it as
+  /// set_params applies new ones, so that a table saved before rotation or kinematic hardening
+  /// was switched on gets their entries (the flow would skip them) and thresholds saved under
+  /// another yield value shift to the current one.
+  void restored(State& s) {
+    if constexpr (requires { engine_.check_table(s); }) engine_.check_table(s);
+    engine_.change_params(params_, params_, s);
   }
   /// The anchor nodes: those with a constrained dof.
   template <class IsConstrained>

@@ -85,6 +85,23 @@ class Plasticity {
     synced_version_ = 0;
   }
 
+  /// Refuses (InvalidArgument) a table this engine did not make for this mesh: entries per
+  /// element of another policy (VertexBlended and CellCentered share the table's type), or
+  /// values that are not finite. Solver::restore asks before it installs a state's table.
+  void check_table(const PlasticTable& t) const {
+    const size_t ne = V0_.size(), np = ne * P, nr = ne * NR;
+    if (t.tau.size() != np || !(t.tau_R.empty() || t.tau_R.size() == nr) || t.rotation.size() != 3 * t.tau_R.size() ||
+        !(t.alpha.empty() || t.alpha.size() == 6 * np) || t.volume.size() != ne)
+      fail<InvalidArgument>("restore: the state's plastic table is not this policy's: {} thresholds, {} rotation "
+                            "thresholds, {} volumes for {} elements with {} flow points and {} rotation entries each "
+                            "(a state of another plastic policy?)",
+                            t.tau.size(), t.tau_R.size(), t.volume.size(), ne, P, NR);
+    auto finite = [](const auto& v) { return std::all_of(v.begin(), v.end(), [](Scalar x) { return std::isfinite(x); }); };
+    if (!t.rest.allFinite() || !finite(t.tau) || !finite(t.alpha) || !finite(t.tau_R) || !finite(t.rotation) ||
+        !finite(t.volume))
+      fail<InvalidArgument>("restore: the state's plastic table has values that are not finite");
+  }
+
   /// The assembler's pattern changed (the dof map grew, a cut froze elements): the fusion is
   /// rebuilt when next needed.
   void pattern_changed() { fusion_off_.clear(); }

@@ -282,6 +282,7 @@ void Solver<E, Elastic, Plastic, Enrich>::restore(const StateType& s) {
       fail<InvalidArgument>("restore: the state's plastic table is not this mesh's");
   }
   StateType copy = s;
+  plastic_.restored(copy.plastic);  // checked, and under the current plastic parameters
   sync_rest_shapes(copy);  // the element data at its rest shapes (shapes that were valid then)
   current_.swap(copy);
 }
