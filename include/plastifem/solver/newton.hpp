@@ -61,7 +61,10 @@ struct NewtonOptions {
   int min_iterations = 0;             ///< dynamics: 1 (the first solve also gives the next step's CG start)
   bool stagnation = false;            ///< accept a stagnated iterate (dynamics)
   bool constant_tangent = false;      ///< a linear model: one converged solve is the answer
-  bool verify_one_solve = false;      ///< statics: check the residual after that solve
+  /// Check the residual after that solve (statics and accurate steps: it is what the report
+  /// gives, and a solve short of the tolerance goes on). Without it the report's residual is
+  /// the one before the solve.
+  bool verify_one_solve = false;
   bool line_search = false;           ///< whether the line search policy may backtrack
   bool eager_tangent = false;         ///< evaluate the tangent with each new iterate
   Scalar refresh_ratio = 0;           ///< keep the tangent while |r| falls by this factor per iteration (0: never)
