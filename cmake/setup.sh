@@ -13,7 +13,7 @@
 #   bash cmake/setup.sh sanitize  a representative subset of the tests (every element, model and
 #                                 reader) built with AddressSanitizer + UndefinedBehaviorSanitizer
 #                                 into build-sanitize/
-#   bash cmake/setup.sh fuzz [s]  the mesh readers' libFuzzer targets, s seconds each (default 60;
+#   bash cmake/setup.sh fuzz [s]  the mesh and surface readers' libFuzzer targets, s seconds each (default 60;
 #                                 installs clang; fuzz/README.md)
 #   bash cmake/setup.sh build-time  what including the toolkit costs the compiler
 #                                 (docs/build_time.md): CPU seconds and peak memory per translation unit

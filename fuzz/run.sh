@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of this directory and runs each for a bounded time on its corpus.
 #
-#   fuzz/run.sh [seconds per target, default 60] [target ...]   (targets: gmsh vtu vtk_legacy)
+#   fuzz/run.sh [seconds per target, default 60] [target ...]   (targets: gmsh vtu vtk_legacy surface)
 #
 # Environment: BUILD_DIR (default build-fuzz/ at the repository root, ignored by git), CXX
 # (default clang++-14, else clang++), FUZZ_FLAGS (more libFuzzer options, e.g. -use_value_profile=1).
@@ -16,7 +16,7 @@ here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
 build=${BUILD_DIR:-$root/build-fuzz}
 cxx=${CXX:-$(command -v clang++-14 || command -v clang++ || echo clang++)}
-all_targets=(gmsh vtu vtk_legacy)
+all_targets=(gmsh vtu vtk_legacy surface)
 
 merge=0
 if [[ ${1:-} == --merge ]]; then
@@ -50,9 +50,9 @@ for t in "${targets[@]}"; do
   src=$here/fuzz_$t.cpp
   bin=$build/fuzz_$t
   [[ -f $src ]] || { echo "no such target: $t (have: ${all_targets[*]})" >&2; exit 2; }
-  # Rebuild when the target or a header it reads (mesh/, element/, core/) is newer than the binary.
+  # Rebuild when the target or a header it reads (mesh/, element/, core/, embedding/) is newer than the binary.
   inc=$root/include/plastifem
-  if [[ ! -x $bin || -n $(find "$src" "$here/fuzz_common.hpp" "$inc/mesh" "$inc/element" "$inc/core" -newer "$bin" \
+  if [[ ! -x $bin || -n $(find "$src" "$here/fuzz_common.hpp" "$inc/mesh" "$inc/element" "$inc/core" "$inc/embedding" -newer "$bin" \
                           -print -quit) ]]; then
     throttle
     echo "building $bin"

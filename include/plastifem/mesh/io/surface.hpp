@@ -10,6 +10,7 @@
 // corners with identical coordinates are merged into one vertex, and a facet that collapses to a
 // repeated vertex (a zero-area sliver of the exporter) is dropped with a note.
 // Malformed input throws IoError "file:line: what was expected" (binary STL: the facet number).
+// The `*_string` readers take a file's text (bytes) and the name its messages give.
 #include <plastifem/core/log.hpp>
 #include <plastifem/embedding/triangle_surface.hpp>
 #include <plastifem/mesh/io/vtu.hpp>
@@ -35,9 +36,8 @@ inline Vec3 parse_point(const std::vector<std::string_view>& tok, size_t first, 
 
 }  // namespace detail
 
-/// Reads a Wavefront OBJ surface (see the file comment).
-inline TriangleSurface read_obj(const std::filesystem::path& file) {
-  const std::string text = detail::read_file(file), path = file.string();
+/// Reads a Wavefront OBJ surface from its text; `path` names it in messages (see the file comment).
+inline TriangleSurface read_obj_string(const std::string& text, const std::string& path) {
   std::vector<Vec3> v;
   std::vector<Triangle> tris;
   size_t line_no = 0, pos = 0;
@@ -82,9 +82,9 @@ inline TriangleSurface read_obj(const std::filesystem::path& file) {
   return s;
 }
 
-/// Reads an STL surface, binary or ASCII (see the file comment).
-inline TriangleSurface read_stl(const std::filesystem::path& file) {
-  const std::string text = detail::read_file(file), path = file.string();
+/// Reads an STL surface, binary or ASCII, from its bytes; `path` names it in messages (see the
+/// file comment).
+inline TriangleSurface read_stl_string(const std::string& text, const std::string& path) {
   std::vector<std::array<Vec3, 3>> facets;
   std::uint32_t n = 0;
   if (text.size() >= 84) std::memcpy(&n, text.data() + 80, sizeof n);
@@ -162,6 +162,16 @@ inline TriangleSurface read_stl(const std::filesystem::path& file) {
   for (size_t i = 0; i < v.size(); ++i) s.vertices.col(static_cast<Index>(i)) = v[i];
   if (s.triangles.empty()) fail<IoError>("{}: every facet has two corners at one point", path);
   return s;
+}
+
+/// Reads a Wavefront OBJ surface file (see the file comment).
+inline TriangleSurface read_obj(const std::filesystem::path& file) {
+  return read_obj_string(detail::read_file(file), file.string());
+}
+
+/// Reads an STL surface file, binary or ASCII (see the file comment).
+inline TriangleSurface read_stl(const std::filesystem::path& file) {
+  return read_stl_string(detail::read_file(file), file.string());
 }
 
 /// read_obj or read_stl, by the file's extension (.obj, .stl; any case).
