@@ -528,16 +528,32 @@ TEST_CASE("Mooney-Rivlin flow stress: the generic S = F^-1 P is Abaqus' S = J F^
   for (int k = 0; k < 100; ++k) {
     const Mat3 F = random_F(rng, 0.3);
     Mat3 dev;
-    REQUIRE(plastic::deviatoric_flow_stress<MooneyRivlin>(law, m, F, dev));
+    REQUIRE(plastic::deviatoric_flow_stress<MooneyRivlin>(law, m, F, /*Jbar, unread*/ 1, dev));
     const Mat3 Finv = F.inverse();
     const Mat3 S = F.determinant() * Finv * abaqus_cauchy(tissue, F) * Finv.transpose();
     worst = std::max(worst, (dev - (S - S.trace() / 3 * Mat3::Identity())).norm() / (2 / tissue.D1));
   }
   fmt::print("Mooney-Rivlin flow stress against Abaqus' S: {:.1e} of K\n", worst);
   CHECK(worst <= 1e-12);
+  // The mean-dilatation variant's pressure is U'(Jbar) = 2 (Jbar - 1) / D1, the element's
+  // (hyperelastic.hpp), not the point's: sigma + (U'(Jbar) - U'(J)) I in Abaqus' S (found by
+  // review, 2026-12-01: the flow read the point's locked pressure).
+  const MooneyRivlinMeanDilatation::Law md_law(m);
+  worst = 0;
+  for (int k = 0; k < 100; ++k) {
+    const Mat3 F = random_F(rng, 0.3);
+    const Scalar J = F.determinant(), Jbar = J * (1 + 0.02 * (k % 5 - 2));
+    Mat3 dev;
+    REQUIRE(plastic::deviatoric_flow_stress<MooneyRivlinMeanDilatation>(md_law, m, F, Jbar, dev));
+    const Mat3 Finv = F.inverse();
+    const Mat3 sigma = abaqus_cauchy(tissue, F) + 2 * (Jbar - J) / tissue.D1 * Mat3::Identity();
+    const Mat3 S = J * Finv * sigma * Finv.transpose();
+    worst = std::max(worst, (dev - (S - S.trace() / 3 * Mat3::Identity())).norm() / (2 / tissue.D1));
+  }
+  CHECK(worst <= 1e-12);
   // Undefined where J <= 0, like the law.
   Mat3 dev;
-  CHECK_FALSE(plastic::deviatoric_flow_stress<MooneyRivlin>(law, m, diag(1, 1, -1), dev));
+  CHECK_FALSE(plastic::deviatoric_flow_stress<MooneyRivlin>(law, m, diag(1, 1, -1), 1, dev));
 }
 
 namespace {
@@ -600,6 +616,31 @@ void check_permanent_set(const Material& m) {
 }
 
 }  // namespace
+
+TEST_CASE("Mooney-Rivlin mean dilatation: an element's stress carries the element's pressure U'(Jbar)", "[mooney]") {
+  // Found by review (2026-12-01): the stress output took the volumetric part at the centre's J,
+  // the locked pressure the variant removes (+1036 for the model's -92 on this cantilever). The
+  // deviatoric part is isochoric, so tr(sigma) / 3 = U'(Jbar) = 2 (Jbar - 1) / D1 exactly, with
+  // Jbar the element's deformed over its rest volume (the 2 x 2 x 2 rule integrates det J).
+  const Constants nearly_incompressible{400, 150, 4e-6};  // K / mu = 455: nu = 0.499
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(8, 2, 2);
+  Solver<Hex8, MooneyRivlinMeanDilatation> s(mesh, nearly_incompressible.material());
+  s.fix(mesh.node_set("xmin"));
+  s.add_traction(mesh.face_set("xmax"), Vec3(0, 0, -60));
+  s.solve_static(5);
+  Scalar largest = 0, worst = 0;
+  for (Index e = 0; e < mesh.num_elements(); ++e) {
+    const ElementNodes<Hex8> X = mesh.element_nodes(e);
+    ElementNodes<Hex8> x = X;
+    for (int a = 0; a < 8; ++a) x.col(a) += s.displacement(mesh.element(e)[a]);
+    const Scalar Jbar = element_volume<Hex8>(x) / element_volume<Hex8>(X);
+    const Mat3 sigma = s.stress(e);
+    largest = std::max(largest, sigma.cwiseAbs().maxCoeff());
+    worst = std::max(worst, std::abs(sigma.trace() / 3 - 2 * (Jbar - 1) / nearly_incompressible.D1));
+  }
+  INFO("largest stress component " << largest << ", pressure off by " << worst);
+  CHECK(worst <= 1e-9 * largest);
+}
 
 TEST_CASE("Mooney-Rivlin with plasticity: both policies leave a permanent set after release", "[mooney][plasticity]") {
   check_permanent_set<VertexBlended>(tissue.material());

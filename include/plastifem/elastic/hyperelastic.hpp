@@ -282,6 +282,14 @@ struct Hyperelastic {
     return integrate<E>(law.energy, ps.G, ps.dv, ps.volume(), x, f, K, tangent);
   }
 
+  /// Jbar = (1/V) sum_q dv_q det(x G_q): the element's deformed volume over its rest volume.
+  template <FiniteElement E, class Gradients, class Weights>
+  static Scalar mean_dilatation(const Gradients& Gs, const Weights& dvs, Scalar volume, const ElementNodes<E>& x) {
+    Scalar Jbar = 0;
+    for (int q = 0; q < static_cast<int>(dvs.size()); ++q) Jbar += dvs[q] * (x * Gs[q]).determinant();
+    return Jbar / volume;
+  }
+
   /// The generic integral over the points (G[q], dv[q]) of any container: the fixed Gauss
   /// arrays of the fused path or a PointSet's vectors.
   template <FiniteElement E, class Gradients, class Weights>
@@ -297,12 +305,9 @@ struct Hyperelastic {
       return inf;
     };
     // Volumetric state: at each point (Full) or once at the mean dilatation.
-    Scalar Jbar = 0;
-    for (int q = 0; q < Q; ++q) Jbar += dvs[q] * (x * Gs[q]).determinant();
-    Jbar /= volume;
     Scalar U = 0, dU = 0, ddU = 0, W = 0;
     if constexpr (V == Volumetric::MeanDilatation) {
-      if (!energy.volumetric(Jbar, U, dU, ddU)) return invalid();
+      if (!energy.volumetric(mean_dilatation<E>(Gs, dvs, volume, x), U, dU, ddU)) return invalid();
       W += volume * U;
     }
     M9 A;
@@ -395,13 +400,18 @@ struct Hyperelastic {
     return W;
   }
 
-  /// Cauchy stress at the element centre: sigma = P F^T / J (volumetric part at the centre J).
+  /// Cauchy stress at the element centre: sigma = P F^T / J, P = P_dev(F) + U'(J) cof F with the
+  /// centre's J, or with MeanDilatation the element's Jbar (the pressure U'(Jbar) its forces
+  /// use: the centre's J carries the locked pressure the variant removes; a nearly
+  /// incompressible cantilever's element showed +1036 for the model's -92).
   template <FiniteElement E>
   static M3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material&) {
     const M3 F = x * d.G_centre;
     Scalar psi, U, dU, ddU;
     M3 P;
-    if (!d.energy.deviatoric(F, psi, P, nullptr) || !d.energy.volumetric(F.determinant(), U, dU, ddU))
+    Scalar J = F.determinant();
+    if constexpr (V == Volumetric::MeanDilatation) J = mean_dilatation<E>(d.points.G, d.points.dv, d.volume, x);
+    if (!d.energy.deviatoric(F, psi, P, nullptr) || !d.energy.volumetric(J, U, dU, ddU))
       return M3::Constant(std::numeric_limits<Scalar>::quiet_NaN());
     P += dU * detail::cofactor(F);
     return P * F.transpose() / F.determinant();

@@ -13,7 +13,9 @@
 // average of equally near ones: Tet10's mid-edge nodes). Plastic rotation flows at the nodes
 // from Fbar_a for every model (the paper left it out for the hyperelastic model for speed).
 //
-// Stress. The second Piola-Kirchhoff stress S: the hyperelastic model's own, S = F^-1 P(F);
+// Stress. The second Piola-Kirchhoff stress S: the hyperelastic model's own, S = F^-1 P(F)
+// (for a MeanDilatation variant with its pressure U'(Jbar), Jbar the element's mean dilatation:
+// the point's own J carries the locked pressure the variant removes);
 // for the small-strain models the St Venant-Kirchhoff stress of the Green strain,
 // S = lambda tr(E) I + 2 mu E, E = (F^T F - I) / 2 ("we compute C = F^T F, E = (C - I)/2 and
 // the second Piola-Kirchhoff stress"): equal to their stress to first order in the strain,
@@ -91,6 +93,11 @@ template <class Energy, Volumetric V>
 struct is_hyperelastic<Hyperelastic<Energy, V>> : std::true_type {};
 template <class M>
 inline constexpr bool is_hyperelastic_v = is_hyperelastic<M>::value;
+/// Whether it is a hyperelastic MeanDilatation variant (its pressure is U'(Jbar), hyperelastic.hpp).
+template <class M>
+inline constexpr bool is_mean_dilatation_hyperelastic_v = false;
+template <class Energy>
+inline constexpr bool is_mean_dilatation_hyperelastic_v<Hyperelastic<Energy, Volumetric::MeanDilatation>> = true;
 
 namespace plastic {
 
@@ -165,11 +172,24 @@ inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
 }
 
 /// The deviator of the flow stress S at F (see the file comment); false where it is undefined
-/// (the hyperelastic energies with ln J at J <= 0).
+/// (the hyperelastic energies with ln J at J <= 0). `Jbar`: the element's mean dilatation, read
+/// by the hyperelastic MeanDilatation variants only.
 template <class Elastic>
-bool deviatoric_flow_stress(const typename Elastic::Law& law, const Material& m, const Mat3& F, Mat3& dev) {
+bool deviatoric_flow_stress(const typename Elastic::Law& law, const Material& m, const Mat3& F, Scalar Jbar, Mat3& dev) {
   Mat3 S;
-  if constexpr (requires { law.energy.second_piola(F, S); }) {
+  if constexpr (is_mean_dilatation_hyperelastic_v<Elastic>) {
+    // S = F^-1 (P_dev(F) + U'(Jbar) cof F): the stress the element's forces integrate (with the
+    // point's U'(J), a nearly incompressible cantilever's points yielded at |s| = 38,600 where
+    // the model's stress is 890 at most).
+    Scalar psi, U, dU, ddU;
+    Mat3 P;
+    const Scalar J = F.determinant();
+    if (!(std::abs(J) > 0) || !law.energy.deviatoric(F, psi, P, nullptr) || !law.energy.volumetric(Jbar, U, dU, ddU))
+      return false;
+    const Mat3 cof = detail::cofactor(F);
+    S = cof.transpose() * (P + dU * cof) / J;
+    S = 0.5 * (S + S.transpose());
+  } else if constexpr (requires { law.energy.second_piola(F, S); }) {
     if (!law.energy.second_piola(F, S)) return false;  // a closed form (NeoHookeanEnergy)
   } else if constexpr (is_hyperelastic_v<Elastic>) {
     Mat3 P;
@@ -209,6 +229,7 @@ struct FlowPoints {
   std::array<Vec3, size> xi;              ///< reference coordinates of the flow points
   std::array<Eigen::Matrix<Scalar, N, 3>, N + 1> dN_nodes;  ///< dN/dxi at the nodes and (last) the centre
   std::array<Eigen::Matrix<Scalar, N, 3>, Q> dN_gauss;      ///< dN/dxi at the Gauss points
+  std::array<Scalar, Q> w_gauss;                             ///< their weights
   Eigen::Matrix<Scalar, N, 1> N_centre;
   std::array<std::array<int, 4>, N> nearest{};  ///< Gauss flow: the Gauss points nearest to each node
   std::array<int, N> num_nearest{};
@@ -220,7 +241,7 @@ struct FlowPoints {
     for (int a = 0; a < N; ++a) dN_nodes[a] = E::gradient(Xref.col(a));
     dN_nodes[N] = E::gradient(c);
     N_centre = E::shape(c);
-    for (int g = 0; g < Q; ++g) dN_gauss[g] = E::gradient(q.points[g]);
+    for (int g = 0; g < Q; ++g) dN_gauss[g] = E::gradient(q.points[g]), w_gauss[g] = q.weights[g];
     for (int k = 0; k < size; ++k) xi[k] = Gauss ? Vec3(q.points[k]) : Vec3(Xref.col(k));
     for (int a = 0; a < N; ++a) {
       Scalar best = std::numeric_limits<Scalar>::max();
@@ -251,6 +272,8 @@ struct FlowGradients {
   std::array<ShapeGradients<E>, N + 1> G;
   struct None {};
   std::conditional_t<Gauss, Eigen::Matrix<Scalar, Q, 3 * N>, None> GT;
+  std::conditional_t<Gauss, std::array<Scalar, Q>, None> dv;  ///< the Gauss points' rest volumes
+  Scalar volume = 0;                                          ///< their sum (Gauss flow)
 
   FlowGradients() = default;
   FlowGradients(const FlowPoints<E, Gauss>& pts, const ElementNodes<E>& X) {
@@ -258,10 +281,24 @@ struct FlowGradients {
     for (int a = 0; a < N; ++a) G[a] = 0.5 * (G[a] + G[N]);
     if constexpr (Gauss)
       for (int g = 0; g < Q; ++g) {
-        const ShapeGradients<E> Gg = physical_gradient_at<E>(X, pts.dN_gauss[g]);
+        Scalar det_J;
+        const ShapeGradients<E> Gg = physical_gradient_at<E>(X, pts.dN_gauss[g], &det_J);
         for (int a = 0; a < N; ++a)
           for (int j = 0; j < 3; ++j) GT(g, 3 * a + j) = Gg(a, j);
+        dv[g] = pts.w_gauss[g] * det_J;
+        volume += dv[g];
       }
+  }
+
+  /// Jbar = (1/V) sum_g dv_g det F_g over the Gauss points' F (the element's mean dilatation, as
+  /// the hyperelastic model computes it at the same points).
+  template <class Gradients>
+  Scalar mean_dilatation(const Gradients& F) const
+    requires Gauss
+  {
+    Scalar Jbar = 0;
+    for (int g = 0; g < Q; ++g) Jbar += dv[g] * F[g].determinant();
+    return Jbar / volume;
   }
 
   /// F = x dN/dX at Gauss point g (the Gauss flow).
@@ -380,7 +417,8 @@ class ElementFlow {
     if (prm.volume_restitution > 0 && std::abs(1 - beta) > prm.volume_tolerance) return true;
     if (!prm.stretch_active()) return false;
     if constexpr (gauss) {
-      if constexpr (requires { law.energy.template deviatoric_second_piola_norm2<P>(grad.gauss_gradients(x)); }) {
+      if constexpr (!is_mean_dilatation_hyperelastic_v<Elastic> &&
+                    requires { law.energy.template deviatoric_second_piola_norm2<P>(grad.gauss_gradients(x)); }) {
         // All points at once (the energy's closed form, one SIMD lane per point). Conservative
         // by 1e-6 of tau^2: the batched arithmetic differs from run()'s in round-off, amplified
         // where the deviator is small against the whole stress (up to 5e-11 relative on random
@@ -391,9 +429,13 @@ class ElementFlow {
           if (!(s2[k] <= en.tau[k] * en.tau[k] * (1 - 1e-6))) return true;  // NaN: undefined, run() counts it
         return false;
       } else {
+        std::array<Mat3, P> F;
+        for (int k = 0; k < P; ++k) F[k] = grad.gauss_gradient(x, k);
+        Scalar Jbar = 1;
+        if constexpr (is_mean_dilatation_hyperelastic_v<Elastic>) Jbar = grad.mean_dilatation(F);
         for (int k = 0; k < P; ++k) {
           Mat3 dev;
-          if (!deviatoric_flow_stress<Elastic>(law, m, grad.gauss_gradient(x, k), dev)) return true;
+          if (!deviatoric_flow_stress<Elastic>(law, m, F[k], Jbar, dev)) return true;
           if (von_mises_norm(prm.stress_scale * dev) > en.tau[k]) return true;
         }
         return false;
@@ -476,11 +518,13 @@ class ElementFlow {
     constexpr bool one_gradient = !gauss && constant_gradient;
     if (stretch) {
       bool defined = true;  // the stress at the last point that computed one
+      Scalar Jbar = 1;
+      if constexpr (is_mean_dilatation_hyperelastic_v<Elastic>) Jbar = grad.mean_dilatation(F_gauss);
       for (int k = 0; k < P; ++k) {
         const Mat3& F = F_point(k);
         if (!one_gradient || k == 0) {
           Mat3 dev;
-          defined = deviatoric_flow_stress<Elastic>(law, m, F, dev);
+          defined = deviatoric_flow_stress<Elastic>(law, m, F, Jbar, dev);
           if (defined) dev_scaled[k] = prm.stress_scale * dev;
         } else {
           dev_scaled[k] = dev_scaled[0];
