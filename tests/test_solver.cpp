@@ -12,6 +12,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -752,6 +753,21 @@ TEST_CASE("bad input is rejected with clear errors", "[solver][errors]") {
                      "node -1 out of range"));
     REQUIRE(contains(error_of<InvalidArgument>([&] { s.add_nodal_force(std::vector<Index>{0}, Vec3(nan, 0, 0)); }),
                      "must be finite"));
+    // A traction acts on the body's surface: a face inside it, or one listed twice (itself, or
+    // from the element on its other side), is refused (found by review, 2026-12-01: accepted,
+    // the load acted inside the body or counted twice).
+    const std::vector<FaceRef> surface = boundary_faces(mesh);
+    FaceRef inside{0, -1};
+    for (int f = 0; f < Hex8::num_faces && inside.face < 0; ++f)
+      if (std::find(surface.begin(), surface.end(), FaceRef{0, f}) == surface.end()) inside.face = f;
+    REQUIRE(inside.face >= 0);
+    REQUIRE(contains(error_of<InvalidArgument>([&] { s.add_traction({inside}, Vec3(0, 0, 1)); }),
+                     fmt::format("traction: face (element 0, local face {}) is shared with element 1: not a boundary face",
+                                 inside.face)));
+    const FaceRef top = mesh.face_set("zmax")[1];
+    REQUIRE(contains(error_of<InvalidArgument>([&] { s.add_traction({top, top}, Vec3(0, 0, 1)); }),
+                     fmt::format("traction: face (element {}, local face {}) is listed twice (as entries 0 and 1)",
+                                 top.element, top.face)));
     s.fix(mesh.node_set("xmin"));
     s.step(0.01);
     s.step(0.01);

@@ -28,34 +28,45 @@ std::vector<Index> select_nodes_in_box(const Mesh<E>& mesh, const Vec3& lo, cons
   });
 }
 
-/// Faces that belong to exactly one element, found by matching the sorted corner ids of every
-/// element face. Order: by element, then local face.
+namespace detail {
+
+/// A face's identity: its sorted corner ids (padded with -1 where faces of several kinds have
+/// fewer), the same from every element that has the face.
 template <FiniteElement E>
-std::vector<FaceRef> boundary_faces(const Mesh<E>& mesh) {
-  // A face's sorted corners (padded with -1 where faces of several kinds have fewer).
-  constexpr int nc = [] {
+struct FaceKey {
+  static constexpr int corners = [] {
     int most = 0;
     for (int f = 0; f < E::num_faces; ++f) most = std::max(most, face_corners(E::face_shape(f)));
     return most;
   }();
-  using Key = std::array<Index, nc>;
-  struct KeyHash {
+  using Key = std::array<Index, corners>;
+  struct Hash {
     size_t operator()(const Key& k) const {
       size_t h = 0;
       for (Index v : k) h = h * 1000003u ^ static_cast<size_t>(v);
       return h;
     }
   };
-  std::unordered_map<Key, int, KeyHash> count;
-  count.reserve(static_cast<size_t>(mesh.num_elements()) * E::num_faces);
-  auto key = [&](FaceRef f) {
+  static Key of(const Mesh<E>& mesh, FaceRef f) {
     const auto ids = mesh.face_nodes(f);
     Key k;
     k.fill(-1);
     std::copy_n(ids.begin(), face_corners(ids.shape), k.begin());
     std::sort(k.begin(), k.end());
     return k;
-  };
+  }
+};
+
+}  // namespace detail
+
+/// Faces that belong to exactly one element, found by matching the sorted corner ids of every
+/// element face. Order: by element, then local face.
+template <FiniteElement E>
+std::vector<FaceRef> boundary_faces(const Mesh<E>& mesh) {
+  using Key = detail::FaceKey<E>;
+  std::unordered_map<typename Key::Key, int, typename Key::Hash> count;
+  count.reserve(static_cast<size_t>(mesh.num_elements()) * E::num_faces);
+  auto key = [&](FaceRef f) { return Key::of(mesh, f); };
   for (Index e = 0; e < mesh.num_elements(); ++e)
     for (int f = 0; f < E::num_faces; ++f) ++count[key({e, f})];
   std::vector<FaceRef> faces;
@@ -66,6 +77,32 @@ std::vector<FaceRef> boundary_faces(const Mesh<E>& mesh) {
       if (c == 1) faces.push_back({e, f});
     }
   return faces;
+}
+
+/// Throws InvalidArgument (`what`: the message's subject) unless every face of `faces` is a
+/// boundary face of the mesh, listed once: a face shared with another element is inside the
+/// body, and one listed twice (itself, or the same face from its other element) counts twice.
+/// One pass over the mesh's faces, with lookups in a table of the given ones.
+template <FiniteElement E>
+void check_boundary_faces(const Mesh<E>& mesh, const std::vector<FaceRef>& faces, const char* what) {
+  using Key = detail::FaceKey<E>;
+  std::unordered_map<typename Key::Key, size_t, typename Key::Hash> listed;
+  listed.reserve(faces.size());
+  for (size_t i = 0; i < faces.size(); ++i) {
+    const auto [it, added] = listed.try_emplace(Key::of(mesh, faces[i]), i);
+    if (!added)
+      fail<InvalidArgument>("{}: face (element {}, local face {}) is listed twice (as entries {} and {})", what,
+                            faces[i].element, faces[i].face, it->second, i);
+  }
+  for (Index e = 0; e < mesh.num_elements(); ++e)
+    for (int f = 0; f < E::num_faces; ++f) {
+      const auto it = listed.find(Key::of(mesh, {e, f}));
+      if (it == listed.end()) continue;
+      const FaceRef& given = faces[it->second];
+      if (given.element != e)
+        fail<InvalidArgument>("{}: face (element {}, local face {}) is shared with element {}: not a boundary face",
+                              what, given.element, given.face, e);
+    }
 }
 
 /// Boundary faces all of whose nodes satisfy `pred(Vec3) -> bool`.

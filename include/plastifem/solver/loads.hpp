@@ -94,6 +94,7 @@ class Loads {
     for (const FaceRef& f : faces)
       if (f.element < 0 || f.element >= mesh.num_elements() || f.face < 0 || f.face >= E::num_faces)
         fail<InvalidArgument>("traction: face (element {}, local face {}) out of range", f.element, f.face);
+    check_boundary_faces(mesh, faces, "traction");  // (inside the body, or counted twice)
     return {faces, t};
   }
 
