@@ -543,7 +543,7 @@ TEST_CASE("Mooney-Rivlin flow stress: the generic S = F^-1 P is Abaqus' S = J F^
   for (int k = 0; k < 100; ++k) {
     const Mat3 F = random_F(rng, 0.3);
     const Scalar J = F.determinant(), Jbar = J * (1 + 0.02 * (k % 5 - 2));
-    Mat3 dev;
+    Mat3 dev = Mat3::Zero();
     REQUIRE(plastic::deviatoric_flow_stress<MooneyRivlinMeanDilatation>(md_law, m, F, Jbar, dev));
     const Mat3 Finv = F.inverse();
     const Mat3 sigma = abaqus_cauchy(tissue, F) + 2 * (Jbar - J) / tissue.D1 * Mat3::Identity();
