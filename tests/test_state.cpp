@@ -241,7 +241,7 @@ TEST_CASE("restore: a state taken earlier, then the same steps, give the same ru
   CHECK(s.state() == now);
 }
 
-TEST_CASE("restore: a plastic table of another policy is refused; the current plastic parameters apply to it",
+TEST_CASE("restore: a plastic table of another policy is refused, and the current plastic parameters apply to it",
           "[state][restore][plasticity]") {
   // Found by review (2026-12-01). A CellCentered state (one flow point per element) restored into
   // a VertexBlended solver of the same mesh (eight) was accepted, and the next flow read past the
