@@ -61,9 +61,9 @@ struct NewtonOptions {
   int min_iterations = 0;             ///< dynamics: 1 (the first solve also gives the next step's CG start)
   bool stagnation = false;            ///< accept a stagnated iterate (dynamics)
   bool constant_tangent = false;      ///< a linear model: one converged solve is the answer
-  /// Check the residual after that solve (statics and accurate steps: it is what the report
-  /// gives, and a solve short of the tolerance goes on). Without it the report's residual is
-  /// the one before the solve.
+  /// Check the residual after that solve (statics: a solve short of the tolerance goes on).
+  /// Without it the result's residual is the one before the solve (Dynamics computes the
+  /// committed state's from it).
   bool verify_one_solve = false;
   bool line_search = false;           ///< whether the line search policy may backtrack
   bool eager_tangent = false;         ///< evaluate the tangent with each new iterate
