@@ -21,6 +21,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numbers>
 
 using namespace plastifem;
@@ -123,6 +124,12 @@ TEST_CASE("liver surface: closed, facing out, its volume converges to the map's 
     slope = std::min(slope, (g(z + 1e-6) - g(z - 1e-6)) / 2e-6);
   }
   CHECK(slope > 0.5);
+  // Refused: a size that is not > 0, a centre that is not finite (found by review, 2026-12-01:
+  // the centre was not checked, and a NaN one gave NaN vertices).
+  const Scalar nan = std::numeric_limits<Scalar>::quiet_NaN();
+  CHECK_THROWS_AS(liver_surface(Vec3(1, 2, 3), 0, 3), InvalidArgument);
+  CHECK_THROWS_AS(liver_surface(Vec3(nan, 0, 0), 1, 3), InvalidArgument);
+  CHECK_THROWS_AS(liver_surface(Vec3(0, 0, std::numeric_limits<Scalar>::infinity()), 1, 3), InvalidArgument);
 }
 
 TEMPLATE_LIST_TEST_CASE("embedded surface: an affine motion moves it exactly, its volume by det(I + A)",

@@ -147,8 +147,9 @@ inline Vec3 liver_map(const Vec3& p) {
 /// `subdivisions` mapped by liver_map. 5: 20,480 triangles. Procedural, no data file: a
 /// stand-in for an organ a user reads from OBJ or STL (io::read_surface).
 inline TriangleSurface liver_surface(const Vec3& center, Scalar size, int subdivisions) {
-  if (!(size > 0) || !std::isfinite(size))
-    fail<InvalidArgument>("liver_surface: size {} (> 0, finite)", size);
+  if (!(size > 0) || !std::isfinite(size) || !center.allFinite())
+    fail<InvalidArgument>("liver_surface: size {} (> 0, finite), centre ({}, {}, {}) finite", size, center.x(),
+                          center.y(), center.z());
   TriangleSurface s = sphere_surface(Vec3::Zero(), 1, subdivisions);
   for (Index i = 0; i < s.num_vertices(); ++i) s.vertices.col(i) = center + size * liver_map(s.vertices.col(i));
   return s;
