@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 
 using namespace plastifem;
@@ -144,6 +145,40 @@ TEST_CASE("batched polar rotations equal one-at-a-time ones, with every branch i
   std::array<Mat3, 1> F1{random_rotation(rng) * Vec3(1.01, 0.98, 1.02).asDiagonal()}, R1;
   rotations_of<1>(F1, R1);
   CHECK(R1[0] == rotation_of(F1[0]));
+}
+
+TEST_CASE("polar rotation does not depend on F's scale, from 1e-300 to 1e300, one at a time and batched", "[polar]") {
+  // R(c F) = R(F) for every c > 0: the polar factor is scale-free. |F|^2 overflows for entries
+  // beyond ~1e154 and goes subnormal below ~1e-154, which must not change the answer (it gave
+  // the identity, or a rotation off by the subnormal's lost digits). The tolerance is that of
+  // the tests above: the scaled iterate differs from the unit one by one rounding per entry.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<Scalar> u(-1, 1);
+  for (Scalar scale : {1e-300, 1e-200, 1e-160, 1e-150, 1e150, 1e160, 1e200, 1e300}) {
+    std::array<Mat3, 8> F, R;
+    for (int q = 0; q < 8; ++q) {
+      Mat3 D;
+      for (int i = 0; i < 9; ++i) D(i / 3, i % 3) = (q < 4 ? 0.02 : 0.5) * u(rng);
+      F[q] = random_rotation(rng) * (Mat3::Identity() + D);
+    }
+    F[7] = random_rotation(rng) * Vec3(1.2, 0.9, -0.1).asDiagonal();  // the SVD branch
+    std::array<Mat3, 8> Fs;
+    for (int q = 0; q < 8; ++q) Fs[q] = F[q] * scale;
+    rotations_of<8>(Fs, R);
+    for (int q = 0; q < 8; ++q) {
+      INFO("scale " << scale << " point " << q);
+      const Mat3 R_unit = rotation_of(F[q]);
+      CHECK((rotation_of(Fs[q]) - R_unit).norm() < 1e-13);
+      CHECK((R[q] - R_unit).norm() < 1e-13);
+      CHECK(std::abs(R[q].determinant() - 1) < 1e-14);
+    }
+  }
+  // Still the identity for what has no rotation: zero, non-finite, infinite entries.
+  CHECK(rotation_of(Mat3::Constant(std::numeric_limits<Scalar>::infinity())) == Mat3::Identity());
+  Mat3 one_inf = Mat3::Identity();
+  one_inf(1, 2) = -std::numeric_limits<Scalar>::infinity();
+  CHECK(rotation_of(one_inf) == Mat3::Identity());
+  CHECK(rotation_of(Mat3::Identity() * 1e-320) == Mat3::Identity());  // subnormal: still a scaled I
 }
 
 TEST_CASE("block-symmetric matrix: assembly, product, diagonal, sum and CSC copy against dense", "[assembly]") {

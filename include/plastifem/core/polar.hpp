@@ -66,6 +66,7 @@ struct GramDeviation {
 
 inline Mat3 rotation_by_svd(const Mat3& X) {
   Eigen::JacobiSVD<Mat3> svd(X, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  if (svd.info() != Eigen::Success) return Mat3::Identity();  // non-finite X: no rotation to take
   Mat3 U = svd.matrixU();
   const Mat3 V = svd.matrixV();
   if ((U * V.transpose()).determinant() < 0) U.col(2) *= -1;  // singular values sorted: col 2 is smallest
@@ -81,7 +82,14 @@ inline Mat3 rotation_by_svd(const Mat3& X) {
 /// 163 -> 64 ns per decomposition, at 5% 245 -> 98 ns, at 20% 330 -> 154 ns).
 inline Mat3 rotation_of(const Mat3& F) {
   const Scalar norm2 = F.squaredNorm();
-  if (!(norm2 > 0) || !std::isfinite(norm2)) return Mat3::Identity();
+  // The rotation does not depend on F's scale, but |F|^2 overflows beyond entries of ~1e154
+  // and loses digits (subnormal) below ~1e-154: outside a safe range, F is first divided by
+  // its largest entry (exact up to one rounding), so F and 1e200 F give the same R.
+  if (!(norm2 > 1e-280 && norm2 < 1e280)) {
+    const Scalar largest = F.cwiseAbs().maxCoeff();
+    if (!F.allFinite() || !(largest > 0)) return Mat3::Identity();
+    return rotation_of(F / largest);  // |F / largest|^2 in [1, 9]: one level deep
+  }
   const Scalar scale = std::sqrt(3 / norm2);  // rms singular value 1: thresholds below are relative
   Scalar x[9];                                // X, column-major: X(r, c) = x[r + 3c]
   for (int i = 0; i < 9; ++i) x[i] = scale * F.data()[i];
@@ -141,8 +149,9 @@ void rotations_of(const PointMat3<Q>& F, PointMat3<Q>& R) {
   for (int i = 0; i < 9; ++i)
     for (int q = 0; q < Q; ++q) norm2[q] += F[i](q) * F[i](q);
   // Scaled to rms singular value 1, then the same entry tests as rotation_of: det X > 5e-3
-  // and |X^T X - I| < 1/4. Other points are replaced by the identity (converged) here.
-  for (int q = 0; q < Q; ++q) norm2[q] = (norm2[q] > 0 && std::isfinite(norm2[q])) ? std::sqrt(3 / norm2[q]) : 0.0;
+  // and |X^T X - I| < 1/4. Other points are replaced by the identity (converged) here. A lane
+  // whose |F|^2 is outside rotation_of's safe range gets X = 0, so it is done there, rescaled.
+  for (int q = 0; q < Q; ++q) norm2[q] = (norm2[q] > 1e-280 && norm2[q] < 1e280) ? std::sqrt(3 / norm2[q]) : 0.0;
   for (int i = 0; i < 9; ++i)
     for (int q = 0; q < Q; ++q) x[i][q] = F[i](q) * norm2[q];
   bool any_alone = false, any_far = false;
