@@ -420,6 +420,66 @@ TEST_CASE("pvd series: frames and a collection that is valid after every frame",
   CHECK_THROWS_AS(io::PvdWriter(dir, ""), InvalidArgument);
 }
 
+TEST_CASE("vtu and pvd names: tabs and newlines round-trip, names XML cannot hold are refused", "[io][vtu][pvd]") {
+  // A raw tab, LF or CR in an attribute value is read as a space by an XML parser (attribute value
+  // normalisation): they are written as character references. Bytes XML 1.0 cannot hold at all
+  // (control characters, invalid UTF-8, U+FFFE/U+FFFF) would make the file unreadable: refused.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 1, 1);
+  const Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(mesh.num_nodes(), 0, 1);
+  const Eigen::VectorXd d = Eigen::VectorXd::Constant(mesh.num_elements(), 2);
+  const std::string dir = out_path("names");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/names.vtu";
+  for (io::Encoding enc : all_encodings) {
+    INFO("encoding " << encoding_name(enc));
+    io::write_vtu(path, mesh, {{"a\tb\nc\rd", t}}, {{"x\n\ny", d}}, with_encoding(enc));
+    const std::string text = read_text(path);
+    CHECK(contains(text, "Name=\"a&#9;b&#10;c&#13;d\""));  // no raw whitespace for a parser to normalise
+    CHECK(contains(text, "Name=\"x&#10;&#10;y\""));
+    const auto data = io::read_vtu<Hex8>(path);
+    CHECK(data.point_data.count("a\tb\nc\rd") == 1);
+    CHECK(data.cell_data.count("x\n\ny") == 1);
+  }
+  // Valid UTF-8 of 2, 3 and 4 bytes per character (U+FFFD, U+D7FF, U+E000, U+10FFFF: the edges
+  // of what XML allows) is written as is and reads back the same.
+  for (const std::string name : {"\xc2\xb5", "\xc3\xa9t\xc3\xa9", "\xf0\x9f\x98\x80", "\xef\xbf\xbd", "\xed\x9f\xbf",
+                                 "\xee\x80\x80", "\xf4\x8f\xbf\xbf", "del\x7f"}) {
+    INFO("name " << name);
+    CHECK_NOTHROW(io::write_vtu(path, mesh, {{name, t}}, {{name, d}}));
+    const auto data = io::read_vtu<Hex8>(path);
+    CHECK(data.point_data.count(name) == 1);
+    CHECK(data.cell_data.count(name) == 1);
+  }
+  // Refused: a control character, a lone or truncated byte sequence, overlong forms, a surrogate,
+  // a code point beyond U+10FFFF, U+FFFE and U+FFFF.
+  const std::vector<std::string> bad = {"a\x01", std::string("a\0b", 3), "\x1f", "\xff", "a\xc3", "\x80",
+                                        "\xc0\xaf", "\xe0\x80\xaf", "\xf0\x8f\xbf\xbf", "\xed\xa0\x80",
+                                        "\xed\xbf\xbf", "\xf4\x90\x80\x80", "\xef\xbf\xbe", "\xef\xbf\xbf"};
+  for (size_t k = 0; k < bad.size(); ++k) {
+    INFO("bad name " << k);
+    CHECK_THROWS_AS(io::write_vtu(path, mesh, {{"ok", t}, {bad[k], t}}), InvalidArgument);
+    CHECK_THROWS_AS(io::write_vtu(path, mesh, {}, {{bad[k], d}}), InvalidArgument);
+    CHECK_THROWS_AS(io::PvdWriter(dir, bad[k]), InvalidArgument);
+    io::PvdWriter pvd(dir, "series");
+    CHECK_THROWS_AS(pvd.write(0.0, mesh, {{bad[k], t}}), InvalidArgument);
+  }
+  // The message names the field by kind and index (its bytes are no text to print).
+  std::string message;
+  try {
+    io::write_vtu(path, mesh, {{"ok", t}, {"\xc0\xaf", t}});
+  } catch (const InvalidArgument& e) {
+    message = e.what();
+  }
+  CHECK(contains(message, "point field 1"));
+  // A basename in UTF-8 and tab: the collection lists its frame, escaped.
+  io::PvdWriter pvd(dir, "\xc2\xb5m\tx");
+  const auto vtu = pvd.write(0.0, mesh, {{"\xc2\xb5", t}});
+  CHECK(vtu.filename().string() == "\xc2\xb5m\tx_0000.vtu");
+  CHECK(contains(read_text(pvd.pvd_path().string()), "file=\"\xc2\xb5m&#9;x_0000.vtu\""));
+  CHECK(io::read_vtu<Hex8>(vtu).point_data.count("\xc2\xb5") == 1);
+}
+
 // ================================================================================ Gmsh ========
 
 namespace {

@@ -20,6 +20,9 @@ class PvdWriter {
       : dir_(std::move(directory)), base_(std::move(basename)), options_(std::move(options)) {
     if (base_.empty() || base_.find_first_of("/\\") != std::string::npos)
       fail<InvalidArgument>("PVD basename must be a non-empty file name without '/', got '{}'", base_);
+    if (!detail::xml_writable(base_))  // it goes into the .pvd's file="..." attributes
+      fail<InvalidArgument>("PVD basename {} is a name XML cannot hold (invalid UTF-8, or a control character other "
+                            "than tab, LF, CR)", detail::show(base_));
     std::error_code ec;
     std::filesystem::create_directories(dir_, ec);
     if (ec) fail<IoError>("cannot create directory '{}': {}", dir_.string(), ec.message());

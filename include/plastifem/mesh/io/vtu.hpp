@@ -310,6 +310,9 @@ inline std::optional<std::vector<unsigned char>> base64_decode(std::string_view 
   return out;
 }
 
+/// Text for an attribute value. Tab, LF and CR are written as character references: a parser
+/// normalises them to spaces in an attribute value when raw, so a name holding one would read
+/// back changed.
 inline std::string xml_escape(std::string_view s) {
   std::string out;
   for (char c : s) switch (c) {
@@ -318,9 +321,35 @@ inline std::string xml_escape(std::string_view s) {
       case '>': out += "&gt;"; break;
       case '"': out += "&quot;"; break;
       case '\'': out += "&apos;"; break;
+      case '\t': out += "&#9;"; break;
+      case '\n': out += "&#10;"; break;
+      case '\r': out += "&#13;"; break;
       default: out += c;
     }
   return out;
+}
+
+/// Whether an XML 1.0 document can hold s (escaped): valid UTF-8 (no overlong form, surrogate or
+/// code point beyond U+10FFFF) of characters XML allows -- no control character but tab, LF and
+/// CR, no U+FFFE or U+FFFF. A parser refuses a file with anything else, even as a reference.
+inline bool xml_writable(std::string_view s) {
+  static constexpr char32_t least[] = {0, 0, 0x80, 0x800, 0x10000};  // shortest form's first code point, by length
+  for (size_t i = 0; i < s.size();) {
+    const auto b = static_cast<unsigned char>(s[i]);
+    const size_t n = b < 0x80 ? 1 : (b >> 5) == 6 ? 2 : (b >> 4) == 14 ? 3 : (b >> 3) == 30 ? 4 : 0;
+    if (n == 0 || n > s.size() - i) return false;  // a continuation or invalid lead byte; cut short
+    char32_t c = n == 1 ? b : static_cast<char32_t>(b & (0x7F >> n));
+    for (size_t k = 1; k < n; ++k) {
+      const auto t = static_cast<unsigned char>(s[i + k]);
+      if ((t & 0xC0) != 0x80) return false;
+      c = (c << 6) | (t & 0x3Fu);
+    }
+    if (c < least[n] || c > 0x10FFFF || (c >= 0xD800 && c <= 0xDFFF) || c == 0xFFFE || c == 0xFFFF ||
+        (c < 0x20 && c != '\t' && c != '\n' && c != '\r'))
+      return false;
+    i += n;
+  }
+  return true;
 }
 
 // --- writing -------------------------------------------------------------------------------------
@@ -371,6 +400,9 @@ inline void check_fields(const std::vector<Field>& fields, Index count, const ch
   for (size_t i = 0; i < fields.size(); ++i) {
     const Field& f = fields[i];
     if (f.name.empty()) fail<InvalidArgument>("{} field {} has an empty name", kind, i);
+    if (!xml_writable(f.name))  // the file would not open in ParaView or any XML reader
+      fail<InvalidArgument>("{} field {} has a name XML cannot hold (invalid UTF-8, or a control character other "
+                            "than tab, LF, CR): {}", kind, i, show(f.name));
     if (f.values.rows() < 1 || f.values.cols() != count)
       fail<InvalidArgument>("{} field '{}' is {} x {}; expected components x {} (one column per {})", kind, f.name,
                             f.values.rows(), f.values.cols(), count,
