@@ -245,3 +245,44 @@ TEST_CASE("embedded points follow a growing cut: sides reassigned, each piece's 
   EmbeddedPoints<Hex8> fresh(mesh, X);
   CHECK_THROWS_AS(fresh.interpolate(s.displacement(), u, s.enrichment()), InvalidArgument);
 }
+
+TEST_CASE("embedded points located in another mesh of the same sizes are refused", "[points]") {
+  // A solver on a mesh of the same node and element counts but other coordinates or another
+  // element node order would give the points wrong fields: check_mesh compares the sampled
+  // points' elements node by node, bit for bit, with the mesh they were located in.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 2, 2);
+  const std::vector<Vec3> X = nodes_and_random_points(mesh, Vec3(4, 2, 2), 200, 13);
+  EmbeddedPoints<Hex8> points(mesh, X);
+  const Material m{3000, 0.45, 1.0};
+  // (a) Every node moved by 1e-9 along x: the same sizes and numbering.
+  Eigen::Matrix3Xd moved_nodes = mesh.nodes();
+  moved_nodes.row(0).array() += 1e-9;
+  const Mesh<Hex8> moved(moved_nodes, mesh.elements());
+  // (b) The same nodes, each element's node list rotated about its z axis (still positively
+  // oriented): the same geometry, other node ids at each local position.
+  std::vector<Mesh<Hex8>::Connectivity> rotated = mesh.elements();
+  for (auto& c : rotated) c = {c[1], c[2], c[3], c[0], c[5], c[6], c[7], c[4]};
+  const Mesh<Hex8> permuted(mesh.nodes(), rotated);
+  Eigen::Matrix3Xd x;
+  for (const Mesh<Hex8>* other : {&moved, &permuted}) {
+    INFO((other == &moved ? "moved coordinates" : "permuted element node order"));
+    Solver<Hex8, Corotational> s(*other, m);
+    CHECK_THROWS_AS(points.check_mesh(s), InvalidArgument);
+    CHECK_THROWS_AS(points.positions(s, x), InvalidArgument);
+    std::vector<Mat3> sigma;
+    CHECK_THROWS_AS(points.stresses(s, sigma), InvalidArgument);
+  }
+  // A solver on an identical mesh (built again, not the same object) takes them.
+  Solver<Hex8, Corotational> same(bar_mesh<Hex8>(4, 2, 2), m);
+  CHECK_NOTHROW(points.check_mesh(same));
+  points.positions(same, x);
+  Eigen::Matrix3Xd rest;
+  points.rest_positions(rest);
+  CHECK(x == rest);  // no displacement yet
+  // Points located from given locations are checked the same way.
+  std::vector<PointLocation> where;
+  for (Index k = 0; k < points.size(); ++k) where.push_back({points.element(k), points.xi(k)});
+  const EmbeddedPoints<Hex8> given(mesh, where, std::vector<signed char>(where.size(), -1));
+  CHECK_NOTHROW(given.check_mesh(same));
+  CHECK_THROWS_AS(given.check_mesh(Solver<Hex8, Corotational>(permuted, m)), InvalidArgument);
+}

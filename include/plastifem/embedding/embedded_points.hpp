@@ -25,8 +25,10 @@
 #include <plastifem/mesh/selection.hpp>
 #include <plastifem/plastic/hooks.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <span>
 #include <vector>
 
@@ -67,6 +69,7 @@ class EmbeddedPoints {
       place(mesh, w);
     }
     side_.assign(where.size(), 0);
+    record_samples(mesh);
     set_sides(std::move(sides));
   }
 
@@ -93,14 +96,30 @@ class EmbeddedPoints {
     for (size_t k = 0; k < rest_.size(); ++k) out.col(static_cast<Index>(k)) = rest_[k];
   }
 
-  /// The points were located in a mesh of this solver's size (the solver keeps its own copy).
+  /// The points were located in this solver's mesh (the solver keeps its own copy): its sizes,
+  /// and for the sampled points (see record_samples) their elements' node ids and those nodes'
+  /// rest positions, bit for bit. Another mesh of the same sizes (renumbered, moved) would
+  /// otherwise give wrong fields silently. At most 64 x N comparisons per call.
   template <class S>
   void check_mesh(const S& solver) const {
-    if (solver.mesh().num_nodes() != num_nodes_ || solver.mesh().num_elements() != num_elements_)
+    const Mesh<E>& mesh = solver.mesh();
+    if (mesh.num_nodes() != num_nodes_ || mesh.num_elements() != num_elements_)
       fail<InvalidArgument>("embedded points: located in a mesh of {} nodes and {} elements, asked for a solver's of "
                             "{} and {}",
-                            num_nodes_, num_elements_, solver.mesh().num_nodes(),
-                            solver.mesh().num_elements());
+                            num_nodes_, num_elements_, mesh.num_nodes(), mesh.num_elements());
+    for (size_t i = 0, m = num_samples(); i < m; ++i) {
+      const size_t k = sample(i);
+      const auto& c = nodes_[k];
+      bool same = mesh.element(element_[k]) == c;
+      for (int a = 0; a < N && same; ++a) {
+        const Vec3 X = mesh.node(c[a]);
+        same = std::memcmp(X.data(), sampled_nodes_[i * N + a].data(), 3 * sizeof(Scalar)) == 0;
+      }
+      if (!same)
+        fail<InvalidArgument>("embedded points: located in another mesh (point {}'s element {} has other nodes or "
+                              "node positions in the solver's mesh of the same size); locate them in the solver's mesh",
+                              k, element_[k]);
+    }
   }
   /// Each point's side in its element of `enrichment` (after a cut, or a grown one; the
   /// Solver-level calls below do this themselves).
@@ -215,6 +234,16 @@ class EmbeddedPoints {
       place(mesh, *where);
     }
     side_.assign(static_cast<size_t>(count), 0);
+    record_samples(mesh);
+  }
+  /// The points check_mesh compares: up to 64, spread evenly over the list (i * n / m).
+  size_t num_samples() const { return std::min<size_t>(element_.size(), 64); }
+  size_t sample(size_t i) const { return i * element_.size() / num_samples(); }
+  /// The rest positions of the sampled points' element nodes (their ids are in nodes_).
+  void record_samples(const Mesh<E>& mesh) {
+    sampled_nodes_.clear();
+    for (size_t i = 0; i < num_samples(); ++i)
+      for (int a = 0; a < N; ++a) sampled_nodes_.push_back(mesh.node(nodes_[sample(i)][a]));
   }
   /// Adds a point at `where`.
   void place(const Mesh<E>& mesh, const PointLocation& where) {
@@ -232,6 +261,7 @@ class EmbeddedPoints {
   Index num_nodes_, num_elements_;       ///< of the mesh the points were located in
   std::vector<typename Mesh<E>::Connectivity> nodes_;  ///< each point's element's nodes
   std::vector<Vec3> rest_;                 ///< each point's rest position sum N_a X_a
+  std::vector<Vec3> sampled_nodes_;        ///< N nodes' rest positions per sampled point (check_mesh)
   std::vector<Index> element_;
   std::vector<Vec3> xi_;
   std::vector<typename E::ShapeVector> shape_;
