@@ -1040,3 +1040,53 @@ TEST_CASE("the equation of motion, constant tangent: K assembled once per rest-s
   CHECK(system.tangent_stamp() == stamp);
   CHECK((f - 2 * assembled).norm() <= 1e-12 * assembled.norm());
 }
+
+TEST_CASE("the clock: a path at t = 1e9 moves at its velocity without acceleration, a step the clock loses is refused",
+          "[dynamics][boundary][extreme]") {
+  // A long-running simulator's clock: at t = 1e9 an ulp is 2^-23 = 1.2e-7, so t + 1e-3 is
+  // 1e-3 + 4.7e-8 after t, and the path differences' step min(dt / 16, 1e-4) = 6.25e-5 is
+  // rounded to a multiple of the ulp. Taken as written it made the one-sided second
+  // difference of a constant-velocity path 0.9 (the path moved by 6.2e-5 over an h said to
+  // be 6.25e-5); rounded to the clock it is 0 up to round-off.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  const Scalar t0 = 1e9;
+  const Vec3 speed(0, 0, 0.01);
+  for (const NewmarkMode mode : {NewmarkMode::Accurate, NewmarkMode::RealTime}) {
+    for (const MassKind mass : {MassKind::Consistent, MassKind::Lumped}) {
+      SolverSettings s;
+      s.newmark.mode = mode;
+      s.mass = mass;
+      Solver<Hex8, Corotational> solver(mesh, soft, s);
+      solver.fix(mesh.node_set("xmin"));
+      const auto end = mesh.node_set("xmax");
+      solver.prescribe(end, [&](Scalar t, const Vec3&) { return Vec3(speed * (t - t0)); });
+      solver.set_state(Vector::Zero(solver.num_dofs()), Vector::Zero(solver.num_dofs()), t0);
+      const Scalar dt = 1e-3, held = (t0 + dt) - t0;  // the step the clock takes
+      Scalar worst_a = 0, worst_v = 0;
+      for (int k = 1; k <= 5; ++k) {
+        solver.step(dt);
+        CHECK(solver.time() == t0 + k * held);  // k held is exact: a multiple of the ulp
+        for (const Index i : end) {
+          worst_a = std::max(worst_a, solver.acceleration().segment<3>(3 * i).norm());
+          worst_v = std::max(worst_v, (solver.velocity().segment<3>(3 * i) - speed).norm());
+          // u = speed (t - t0) at the clock's own t: exact to the product's round-off.
+          CHECK((solver.displacement().segment<3>(3 * i) - speed * (solver.time() - t0)).norm() < 1e-17);
+        }
+      }
+      INFO(fmt::format("{} {}: held step {:.8e}, worst |a| {:.2e}, worst |v - speed| {:.2e}",
+                       mode == NewmarkMode::Accurate ? "accurate" : "real time",
+                       mass == MassKind::Lumped ? "lumped" : "consistent", held, worst_a, worst_v));
+      // Round-off of the differences: ~12 eps |g| / h^2 with |g| = 5e-5, h = 6.25e-5 (as held)
+      // gives 1.7e-9 for a and eps |g| / h = 2e-16 x 1e3 for v; 1e-6 is far below the 0.9 of
+      // the unrounded h and far above round-off.
+      CHECK(worst_a < 1e-6);
+      CHECK(worst_v < 1e-9);
+      // 3e-7 is 2.5 ulps of 1e9: t + dt would be off by 20% of dt. Refused, state unchanged.
+      const Vector u = solver.displacement();
+      const Scalar t = solver.time();
+      CHECK_THROWS_AS(solver.step(3e-7), InvalidArgument);
+      CHECK(solver.time() == t);
+      CHECK(solver.displacement() == u);
+    }
+  }
+}

@@ -15,7 +15,8 @@
 //   v(t) = (3 g(t) - 4 g(t - h) + g(t - 2h)) / (2h),
 //   a(t) = (2 g(t) - 5 g(t - h) + 4 g(t - 2h) - g(t - 3h)) / h^2,
 // (evaluated as differences of neighbouring values, so that a constant path gives exactly 0)
-// with h = min(dt / 16, 1e-4): backward, so that a path held constant from the previous step on
+// with h = min(dt / 16, 1e-4) rounded to what the clock holds at t (fl(t + h) - t, so that
+// the differences see the path over the h they divide by: at t = 1e9 an ulp is 1.2e-7): backward, so that a path held constant from the previous step on
 // (a grasp that stops) gives v = a = 0 exactly, and a path linear over the step (a ramp) gives
 // its slope and zero acceleration exactly; h well inside the step, so that a kink at a step
 // boundary affects one step only; h no smaller than it must be for the round-off of the second
@@ -234,7 +235,14 @@ class Constraints {
   template <class NodePosition>
   Index evaluate(Scalar t, Scalar dt, const NodePosition& X, Vector& u, Vector* v, Vector* a,
                  bool from_right = false) const {
-    const Scalar h = std::min(dt / 16, Scalar(1e-4));
+    // h as the clock can hold it: t - k h and t + k h exact, so the differences see the path
+    // over exactly k h (at t = 1e9 an ulp is 1.2e-7, and h = 6e-5 taken as written made the
+    // acceleration of a constant-velocity path 0.9).
+    const Scalar h = (t + std::min(dt / 16, Scalar(1e-4))) - t;
+    if ((v || a) && !(h > 0) && any_motion())
+      fail<InvalidArgument>("prescribed motion at t = {}: the path's derivatives need a difference step of {}, which "
+                            "the round-off of t loses",
+                            t, std::min(dt / 16, Scalar(1e-4)));
     Index jumps = 0;
     for (const Set& s : sets_) {
       for (size_t k = 0; k < s.nodes.size(); ++k) {

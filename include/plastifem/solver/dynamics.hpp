@@ -167,6 +167,10 @@ class Dynamics {
   /// n -> trial by one step of dt; the trial state gets `serial`. Throws SolverError on failure.
   StepReport attempt(Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial) {
     // A sub-step of a cut step can be smaller than any dt Solver::step accepts.
+    if (!clock_represents(n.t, dt))
+      fail<SolverError>("Newmark step at t = {}: a sub-step of dt = {} is lost in the round-off of the clock; the state "
+                        "is unchanged",
+                        n.t, dt);
     if (!std::isfinite(scheme(p.settings, dt).c0()))
       fail<SolverError>("Newmark step at t = {}: dt = {} is too small (1 / (beta dt^2) overflows); the state is "
                         "unchanged",

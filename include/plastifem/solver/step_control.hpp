@@ -19,11 +19,13 @@
 namespace plastifem {
 
 /// Refuses a time step dt from time t that is not finite and positive, that t's round-off
-/// would lose, or whose Newmark coefficient 1 / (beta dt^2) overflows.
+/// would change (clock_represents), or whose Newmark coefficient 1 / (beta dt^2) overflows.
 inline void check_time_step(Scalar dt, Scalar t, const NewmarkSettings& nm) {
   if (!(dt > 0) || !std::isfinite(dt)) fail<InvalidArgument>("time step must be finite and > 0, got dt = {}", dt);
-  if (!std::isfinite(t + dt) || t + dt == t)
-    fail<InvalidArgument>("time step dt = {} is lost in the round-off of t = {}", dt, t);
+  if (!clock_represents(t, dt))
+    fail<InvalidArgument>("time step dt = {} is lost in the round-off of t = {}: t + dt is {} after t (a later start "
+                          "time, or a larger step, keeps the clock exact)",
+                          dt, t, (t + dt) - t);
   if (const Scalar c0 = Newmark{nm.beta, nm.gamma, dt}.c0(); !std::isfinite(c0))
     fail<InvalidArgument>("time step dt = {} is too small: the Newmark coefficient 1 / (beta dt^2) = {} overflows", dt,
                           c0);
