@@ -290,18 +290,67 @@ TEST_CASE("restore: a plastic table of another policy is refused, and the curren
   // (The policies' tables differ in their rotation entries: CellCentered has one per element.)
   Solver<Hex8, Corotational, CellCentered> cell(mesh, soft, {}, more);
   const auto now = s.state();
-  std::string message;
-  try {
-    s.restore(cell.state());
-  } catch (const InvalidArgument& e) {
-    message = e.what();
-  }
-  INFO(message);
-  CHECK(message.find("not this policy's: 192 thresholds, 24 rotation thresholds") != std::string::npos);
+  auto message = [&](const auto& state) {
+    std::string m;
+    try {
+      s.restore(state);
+    } catch (const InvalidArgument& e) {
+      m = e.what();
+    }
+    return m;
+  };
+  // Another solver's state is refused as such; this solver's state with the other policy's
+  // table (put together by hand) by its table.
+  CHECK(message(cell.state()).find("another solver's") != std::string::npos);
+  auto mixed = now;
+  mixed.plastic = cell.state().plastic;
+  INFO(message(mixed));
+  CHECK(message(mixed).find("not this policy's: 192 thresholds, 24 rotation thresholds") != std::string::npos);
   auto bad = now;
   bad.plastic.tau[5] = std::numeric_limits<Scalar>::quiet_NaN();
   CHECK_THROWS_AS(s.restore(bad), InvalidArgument);
   CHECK(s.state() == now);
+}
+
+TEST_CASE("restore: another solver's state of the same sizes is refused, a moved solver's is taken",
+          "[state][restore][plasticity]") {
+  // Found by review (2026-12-01). Sizes were all restore() compared: a state of another solver
+  // of the same mesh and policy was taken, with that body's plastic rest shapes (and, in a cut
+  // body, the other cut's enriched dofs), and the run went on as neither solver's.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 2, 2);
+  PlasticParams p;
+  p.yield_stress = 1000, p.flow_rate = 0.4, p.stress_scale = 50;
+  using VB = Solver<Hex8, Corotational, VertexBlended>;
+  VB a(mesh, soft, {}, p), b(mesh, soft, {}, p);
+  for (VB* s : {&a, &b}) {
+    s->fix(mesh.node_set("xmin"));
+    s->add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, s == &a ? -20.0 : -300.0));
+  }
+  for (int k = 0; k < 20; ++k) a.step(0.02), b.step(0.02);
+  // b flowed, and further than a: their rest shapes differ.
+  CHECK((b.material_positions() - a.material_positions()).cwiseAbs().maxCoeff() > 1e-3);
+  const auto before = a.state();
+  std::string m;
+  try {
+    a.restore(b.state());
+  } catch (const InvalidArgument& e) {
+    m = e.what();
+  }
+  INFO(m);
+  CHECK(m.find("restore: the state is another solver's") != std::string::npos);
+  CHECK(a.state() == before);
+  // set_state makes a state of this solver; a moved solver keeps its states.
+  const auto saved = b.state();
+  b.step(0.02);
+  VB moved = std::move(b);
+  moved.restore(saved);
+  CHECK(moved.state() == saved);
+  a.set_state(Vector::Zero(a.num_dofs()), Vector::Zero(a.num_dofs()), 1.0);
+  const auto restarted = a.state();
+  a.step(0.02);
+  a.restore(restarted);
+  CHECK(a.state() == restarted);
+  CHECK_THROWS_AS(moved.restore(restarted), InvalidArgument);
 }
 
 TEST_CASE("a moved-from solver refuses to change or step with a message, the moved-to one goes on", "[state]") {

@@ -475,6 +475,7 @@ class Dynamics {
     trial.t = n.t + dt;
     trial.balance = p.balance();
     trial.serial = serial;
+    trial.lineage = n.lineage;
   }
 
   // --- real-time mode ---------------------------------------------------------------------

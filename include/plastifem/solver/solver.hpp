@@ -152,7 +152,7 @@ class Solver {
   /// the state counts as balanced with the load f_int(u) for statics.
   void set_state(const Vector& u, const Vector& v, Scalar time = 0);
   /// Goes back to a state() taken earlier (undo): every field, the plastic table and its rest
-  /// shapes with it; refused for a state from before a cut.
+  /// shapes with it; refused for a state from before a cut or of another solver.
   void restore(const StateType& s);
   /// Uses `a` as the acceleration at the current time instead of solving for equilibrium, until
   /// the loads, constraints, mass kind or damping change (MotionState::balance).
@@ -285,7 +285,7 @@ class Solver {
   StateType current_, work_, trial_;
   PlasticHooksType plastic_;
   CutReport cut_report_;
-  HandleOwner cut_owner_;  ///< the number its cut handles carry (a cut handle of another solver is refused)
+  HandleOwner cut_owner_;  ///< the number its cut handles and states carry (another solver's are refused)
   /// True while step() or solve_static() runs. A load curve or a prescribed path is called
   /// during them; one that changes the solver (a cut, a constraint, a load, the state) would
   /// change the system under the step's feet and outlive a failed step, so it is refused.

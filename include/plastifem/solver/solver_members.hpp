@@ -19,6 +19,7 @@ Solver<E, Elastic, Plastic, Enrich>::Solver(const Mesh<E>& mesh, const Material&
   note_unused_nodes(body_.mesh().report());
   current_.reset(body_.num_dofs());
   current_.serial = ++serial_;
+  current_.lineage = cut_owner_.id();
   plastic_.init(body_, current_.plastic);
   rebuild();
 }
@@ -261,6 +262,7 @@ void Solver<E, Elastic, Plastic, Enrich>::set_state(const Vector& u, const Vecto
   Vector f(num_dofs());
   if (body_.assemble(u, f, nullptr, TangentKind::Projected, threads())) s.load = f;
   s.serial = ++serial_;
+  s.lineage = cut_owner_.id();
   current_.swap(s);
 }
 
@@ -268,6 +270,11 @@ template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 void Solver<E, Elastic, Plastic, Enrich>::restore(const StateType& s) {
   check_not_solving("restore");
+  // Sizes say little: another solver's state of the same mesh holds other cuts' enriched dofs
+  // and other plastic rest shapes.
+  if (s.lineage != cut_owner_.id())
+    fail<InvalidArgument>("restore: the state is another solver's; a state is restored into the solver it came "
+                          "from (or the solver that solver was moved into)");
   if (s.num_dofs() != num_dofs() || s.v.size() != num_dofs() || s.a.size() != num_dofs())
     fail<InvalidArgument>("restore: the state has {} dofs, the solver {} (a state from before a cut cannot be "
                           "restored after it)",

@@ -20,7 +20,10 @@
 //   plastic    the plastic policy's per-element table (empty for NoPlasticity; plastic/table.hpp);
 //   serial     an identity: a quantity derived from this state (the real-time step's
 //              linearisation) names the state by it, beside what else it was made of (the
-//              tangent's stamp, the rest shapes' epoch: solver/dynamics.hpp).
+//              tangent's stamp, the rest shapes' epoch: solver/dynamics.hpp);
+//   lineage    the number of the solver whose state it is (its HandleOwner number, which moves
+//              with the solver): restore() refuses another solver's state of the same sizes,
+//              whose enriched dofs and plastic rest shapes belong to another body.
 #include <plastifem/assembly/block_matrix.hpp>
 #include <plastifem/assembly/mass.hpp>
 #include <plastifem/plastic/none.hpp>
@@ -51,6 +54,7 @@ struct MotionState {
   Vector warm_start, warm_start_previous;
   Scalar warm_dt = 0, warm_dt_previous = 0;
   std::uint64_t serial = 0;
+  std::uint32_t lineage = 0;
 
   Index num_dofs() const { return static_cast<Index>(u.size()); }
 
@@ -79,12 +83,14 @@ struct MotionState {
     u = o.u, v = o.v, a = o.a, t = o.t, balance = o.balance;
     load = o.load, warm_start = o.warm_start, warm_start_previous = o.warm_start_previous;
     warm_dt = o.warm_dt, warm_dt_previous = o.warm_dt_previous, serial = o.serial;
+    lineage = o.lineage;
   }
   void swap_motion(MotionState& o) noexcept {
     u.swap(o.u), v.swap(o.v), a.swap(o.a), load.swap(o.load), warm_start.swap(o.warm_start);
     warm_start_previous.swap(o.warm_start_previous);
     std::swap(warm_dt, o.warm_dt), std::swap(warm_dt_previous, o.warm_dt_previous);
     std::swap(t, o.t), std::swap(balance, o.balance), std::swap(serial, o.serial);
+    std::swap(lineage, o.lineage);
   }
   /// Every field equal, bit for bit (NaN payloads aside).
   bool same_motion(const MotionState& y) const {
@@ -93,7 +99,8 @@ struct MotionState {
     };
     return same(u, y.u) && same(v, y.v) && same(a, y.a) && t == y.t && balance == y.balance &&
            same(load, y.load) && same(warm_start, y.warm_start) && same(warm_start_previous, y.warm_start_previous) &&
-           warm_dt == y.warm_dt && warm_dt_previous == y.warm_dt_previous && serial == y.serial;
+           warm_dt == y.warm_dt && warm_dt_previous == y.warm_dt_previous && serial == y.serial &&
+           lineage == y.lineage;
   }
 };
 
