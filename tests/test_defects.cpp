@@ -12,6 +12,8 @@
 //     as such (not as "external loads not finite"), also when cutting reaches it; identical
 //     elements refused (scaled valid tets: tests/test_state.cpp);
 //  8. statics with CG on a body held by one node: never a "converged" garbage displacement;
+//  9. found by review: accessors by index out of range, set_state at a u the model cannot
+//     evaluate, settings enumerators that name nothing, a Mooney-Rivlin share that overflows;
 //  and one found while writing tests/test_features.cpp: an unloaded body at rest, whose only
 //  force is the round-off of its kernels, steps and solves (it failed its fourth step).
 #include "catch.hpp"
@@ -297,6 +299,12 @@ TEST_CASE("defect 5: statics with load steps: a failing callback or a later incr
 
 // ---- 6 ------------------------------------------------------------------------------------------
 
+namespace {
+/// A path that moves the end of a bar 2 long to x = -0.5 at any t > 0 (its other end fixed at
+/// x = 0): some element is inverted at the end of every step from t = 0, whatever its size.
+Vec3 folded_after_zero(Scalar t, const Vec3&) { return t > 0 ? Vec3(-2.5, 0, 0) : Vec3::Zero(); }
+}  // namespace
+
 TEST_CASE("defect 6: max_step_cuts is at most 30 - the final message names the smallest sub-steps",
           "[defects][cuts]") {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 1, 1);
@@ -314,15 +322,14 @@ TEST_CASE("defect 6: max_step_cuts is at most 30 - the final message names the s
   st.max_step_cuts = 30;
   CHECK_NOTHROW(Solver<Hex8, Linear>(mesh, soft, st));
 
-  // A state with an inverted element fails at every sub-step, however small (its force cannot
-  // be evaluated): every cut fails, down to the smallest sub-steps.
+  // A path that inverts an element after t = 0 fails at every sub-step, however small (the
+  // force cannot be evaluated): every cut fails, down to the smallest sub-steps. (An inverted
+  // state set by set_state, which it now refuses, served before.)
   for (auto [cuts, count, size] : {std::tuple{6, "64", "0.00015625"}, std::tuple{30, "1073741824", "9.31323e-12"}}) {
     st.max_step_cuts = cuts;
     Solver<Hex8, NeoHookean> s(mesh, soft, st);
     s.fix(mesh.node_set("xmin"));
-    Vector u = Vector::Zero(s.num_dofs());
-    for (Index i : mesh.node_set("xmax")) u[3 * i] = -1.5;  // the last cell, 1 long, folded through itself
-    s.set_state(u, Vector::Zero(s.num_dofs()));
+    s.prescribe(mesh.node_set("xmax"), folded_after_zero);
     const auto before = s.state();
     const std::string msg = message_of<SolverError>([&] { s.step(0.01); });
     fmt::print("all {} cuts fail: ...{}\n", cuts, msg.substr(msg.find("(also"), 70));
@@ -392,9 +399,7 @@ TEST_CASE("defect 7: non-finite times, damping and CG tolerances, tiny time step
     st.max_step_cuts = 30;
     Solver<Hex8, NeoHookean> s(mesh, soft, st);
     s.fix(mesh.node_set("xmin"));
-    Vector u = Vector::Zero(s.num_dofs());
-    for (Index i : mesh.node_set("xmax")) u[3 * i] = -1.5;  // inverted
-    s.set_state(u, Vector::Zero(s.num_dofs()));
+    s.prescribe(mesh.node_set("xmax"), folded_after_zero);
     const std::string msg = message_of<SolverError>([&] { s.step(1e-150); });
     const std::string last = msg.substr(msg.find("(also"));
     fmt::print("cut to overflow: ...{}\n", last.substr(0, 150));
@@ -532,4 +537,75 @@ TEST_CASE("found: an unloaded body at rest steps and solves, though its only for
   };
   check.template operator()<Corotational>();
   check.template operator()<NeoHookean>();
+}
+
+TEST_CASE("found by review: accessors by index, set_state at an unevaluable u, unknown settings enumerators",
+          "[defects][bad_input]") {
+  // Found by review (2026-12-02): displacement(node) and Mesh::node(i) out of range aborted (an
+  // Eigen assertion; out of bounds without one), is_constrained(1e7) crashed; set_state took a
+  // u with every Neo-Hookean element inverted, and strain_energy() was inf, the stresses NaN;
+  // a MassKind, NewmarkMode or LinearSolverKind cast from an unknown integer ran as a default.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(2, 1, 1);
+  Solver<Hex8, NeoHookean> s(mesh, Material{3000, 0.45, 1.0});
+  const Index n = mesh.num_nodes();
+  for (const Index i : {Index(-1), n, Index(1000000)}) {
+    CHECK_THROWS_AS(s.displacement(i), InvalidArgument);
+    CHECK_THROWS_AS(mesh.node(i), InvalidArgument);
+    CHECK_THROWS_AS(s.is_constrained(3 * i), InvalidArgument);
+  }
+  CHECK_THROWS_AS(mesh.element(-1), InvalidArgument);
+  CHECK_THROWS_AS(mesh.element(mesh.num_elements()), InvalidArgument);
+  CHECK(s.displacement(n - 1) == Vec3::Zero());
+  CHECK_FALSE(s.is_constrained(3 * n - 1));
+  // x = -X inverts every element: ln J is undefined there. Refused, the state as it was.
+  const auto before = s.state();
+  Vector u(s.num_dofs());
+  for (Index i = 0; i < n; ++i) u.segment<3>(3 * i) = -2 * mesh.node(i);
+  std::string message;
+  try {
+    s.set_state(u, Vector::Zero(s.num_dofs()));
+  } catch (const InvalidArgument& e) {
+    message = e.what();
+  }
+  INFO(message);
+  CHECK(message.find("set_state: the model cannot be evaluated at u (element ") != std::string::npos);
+  CHECK(message.find("is inverted") != std::string::npos);
+  CHECK(s.state() == before);
+  CHECK(std::isfinite(s.strain_energy()));
+  // Corotational is defined for inverted elements: the same u is taken.
+  Solver<Hex8, Corotational> c(mesh, Material{3000, 0.45, 1.0});
+  c.set_state(u, Vector::Zero(c.num_dofs()));
+  CHECK(c.displacement() == u);
+  // Enumerators that name nothing, through the constructor and set_settings.
+  auto refused = [&](auto change) {
+    SolverSettings st;
+    change(st);
+    bool constructor = false, setter = false;
+    try {
+      Solver<Hex8, Corotational> x(mesh, Material{3000, 0.45, 1.0}, st);
+    } catch (const InvalidArgument&) {
+      constructor = true;
+    }
+    try {
+      c.set_settings(st);
+    } catch (const InvalidArgument&) {
+      setter = true;
+    }
+    return constructor && setter;
+  };
+  CHECK(refused([](SolverSettings& st) { st.mass = static_cast<MassKind>(7); }));
+  CHECK(refused([](SolverSettings& st) { st.newmark.mode = static_cast<NewmarkMode>(-1); }));
+  CHECK(refused([](SolverSettings& st) { st.linear.kind = static_cast<LinearSolverKind>(9); }));
+  CHECK(refused([](SolverSettings& st) { st.static_linear.kind = static_cast<LinearSolverKind>(2); }));
+  CHECK(refused([](SolverSettings& st) { st.linear.preconditioner = static_cast<CgPreconditioner>(9); }));
+  CHECK(refused([](SolverSettings& st) { st.static_linear.direct = static_cast<DirectSolver>(3); }));
+  CHECK_FALSE(refused([](SolverSettings& st) { st.mass = MassKind::Lumped; }));
+  // A Mooney-Rivlin share whose C10 or C01 overflows.
+  Material huge{3000, 0.45, 1.0};
+  huge.c01_share = 1e307;
+  CHECK_THROWS_AS(huge.validated(), InvalidArgument);
+  huge.c01_share = -1e307;
+  CHECK_THROWS_AS(huge.validated(), InvalidArgument);
+  huge.c01_share = 0.3;
+  CHECK_NOTHROW(huge.validated());
 }

@@ -234,6 +234,14 @@ TEST_CASE("embedded surface cut along element faces opens with either normal, an
   points.assign_sides(s.enrichment());
   Eigen::Matrix3Xd out;
   CHECK_THROWS_AS(points.interpolate(Vector::Zero(3 * mesh.num_nodes()), out, s.enrichment()), InvalidArgument);
+  // The enrichment's accessors by cut and node are checked (found by review, 2026-12-02:
+  // level_set(3, 0) with one cut crashed, geometry(7) returned a corrupt variant).
+  CHECK(s.enrichment().level_set(0, 0) > 0);  // node 0 at x = 0, the normal along +x: phi = 3.3
+  CHECK_THROWS_AS(s.enrichment().level_set(3, 0), InvalidArgument);
+  CHECK_THROWS_AS(s.enrichment().level_set(-1, 0), InvalidArgument);
+  CHECK_THROWS_AS(s.enrichment().level_set(0, mesh.num_nodes()), InvalidArgument);
+  CHECK_THROWS_AS(s.enrichment().geometry(7), InvalidArgument);
+  CHECK_NOTHROW(s.enrichment().geometry(0));
   // The surface's VTU has its points moved already: deform_by would move them twice.
   io::VtuOptions warp;
   warp.deform_by = "displacement";

@@ -61,4 +61,18 @@ template <class E = Error, class... Args>
 }
 #endif
 
+/// InvalidArgument "`what` i out of range [0, n)": the cold half of checked_index, out of line.
+[[noreturn]] inline void index_out_of_range(const char* what, long long i, long long n) {
+  fail<InvalidArgument>("{} {} out of range [0, {})", what, i, n);
+}
+
+/// i, when 0 <= i < n; else InvalidArgument naming `what` (e.g. "Mesh::node: node"). The public
+/// accessors by index use it: a compare on the way, never a read out of bounds.
+template <class I>
+I checked_index(I i, I n, const char* what) {
+  if (i < 0 || i >= n) [[unlikely]]
+    index_out_of_range(what, static_cast<long long>(i), static_cast<long long>(n));
+  return i;
+}
+
 }  // namespace plastifem

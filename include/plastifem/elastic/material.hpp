@@ -82,6 +82,10 @@ struct Material {
     if (!std::isnormal(density))
       fail<InvalidArgument>("density must be at least the smallest normal double, got rho = {}", density);
     if (!std::isfinite(c01_share)) fail<InvalidArgument>("the Mooney-Rivlin c01_share must be finite, got {}", c01_share);
+    // C01 = c01_share mu / 2 and C10 = (1 - c01_share) mu / 2 (elastic/mooney_rivlin.hpp).
+    if (!std::isfinite(c01_share * mu()) || !std::isfinite((1 - c01_share) * mu()))
+      fail<InvalidArgument>("the Mooney-Rivlin c01_share = {} with mu = {} gives C10, C01 beyond double precision",
+                            c01_share, mu());
     return *this;
   }
 };

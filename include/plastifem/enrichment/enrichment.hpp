@@ -75,9 +75,12 @@ class Enrichment {
   std::uint64_t instance() const { return instance_; }
   /// The level set of cut c at node i, snapped (NaN where it was not evaluated: away from the
   /// elements the cut meets).
-  Scalar level_set(int c, Index i) const { return cuts_[c].phi[i]; }
+  Scalar level_set(int c, Index i) const {
+    const auto& phi = cuts_[checked_index(c, num_cuts(), "level_set: cut")].phi;
+    return phi[checked_index(i, static_cast<Index>(phi.size()), "level_set: node")];
+  }
   /// Cut c's surface (the grown one, for a grown cut).
-  const Cut& geometry(int c) const { return cuts_[c].geometry; }
+  const Cut& geometry(int c) const { return cuts_[checked_index(c, num_cuts(), "geometry: cut")].geometry; }
 
   /// Applies `surface` as a new cut (id < 0) or as the grown surface of cut `id` (see the file
   /// comment). Throws InvalidArgument, with nothing changed, if the cut is refused. The cut is

@@ -69,9 +69,11 @@ class Mesh {
   Index num_nodes() const { return static_cast<Index>(nodes_.cols()); }
   Index num_elements() const { return static_cast<Index>(elements_.size()); }
   const Nodes& nodes() const { return nodes_; }
-  Vec3 node(Index i) const { return nodes_.col(i); }
+  /// i, if it is a node of this mesh (else InvalidArgument).
+  Index checked_node(Index i) const { return checked_index(i, num_nodes(), "node"); }
+  Vec3 node(Index i) const { return nodes_.col(checked_node(i)); }
   const std::vector<Connectivity>& elements() const { return elements_; }
-  const Connectivity& element(Index e) const { return elements_[e]; }
+  const Connectivity& element(Index e) const { return elements_[checked_index(e, num_elements(), "element")]; }
   const MeshReport& report() const { return report_; }
 
   /// Coordinates of element e's nodes, one per column.

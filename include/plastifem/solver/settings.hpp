@@ -218,6 +218,18 @@ inline void validate_settings(const SolverSettings& s) {
   if (s.max_step_cuts < 0 || s.max_step_cuts > 30)
     fail<InvalidArgument>("max_step_cuts must be in [0, 30] (2^30 sub-steps), got {}", s.max_step_cuts);
   if (s.threads < 0) fail<InvalidArgument>("threads must be >= 0 (0: OpenMP's default), got {}", s.threads);
+  // An enumerator made from an integer (settings read from a file) that names none would run as
+  // whatever branch the code falls to.
+  auto unknown = [](auto value, auto last) { return static_cast<unsigned>(value) > static_cast<unsigned>(last); };
+  if (unknown(s.mass, MassKind::Lumped)) fail<InvalidArgument>("unknown mass kind {}", static_cast<int>(s.mass));
+  if (unknown(nm.mode, NewmarkMode::RealTime))
+    fail<InvalidArgument>("unknown Newmark mode {}", static_cast<int>(nm.mode));
+  for (const LinearSolverSettings* l : {&s.linear, &s.static_linear})
+    if (unknown(l->kind, LinearSolverKind::ConjugateGradient) ||
+        unknown(l->preconditioner, CgPreconditioner::BlockJacobi) || unknown(l->direct, DirectSolver::CholmodSupernodal))
+      fail<InvalidArgument>("unknown linear solver kind {}, preconditioner {} or direct solver {}",
+                            static_cast<int>(l->kind), static_cast<int>(l->preconditioner),
+                            static_cast<int>(l->direct));
   resolve_direct_solver(s.linear.direct);  // a back-end this build lacks: a clear error now
   resolve_direct_solver(s.static_linear.direct);
 }

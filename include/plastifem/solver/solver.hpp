@@ -143,13 +143,13 @@ class Solver {
   const Vector& displacement() const { return current_.u; }
   const Vector& velocity() const { return current_.v; }
   const Vector& acceleration() const { return current_.a; }
-  Vec3 displacement(Index node) const { return current_.u.template segment<3>(3 * node); }
+  Vec3 displacement(Index node) const { return current_.u.template segment<3>(3 * mesh().checked_node(node)); }
   /// The committed state (every field a step changes).
   const StateType& state() const { return current_; }
   /// Current positions x = X + u, one node per column.
   Eigen::Matrix3Xd positions() const;
-  /// Sets u, v and t; the acceleration is then solved from equilibrium at the next step, and
-  /// the state counts as balanced with the load f_int(u) for statics.
+  /// Sets u, v and t (refused where the model cannot be evaluated); the acceleration is then
+  /// solved from equilibrium at the next step, and the state is balanced with f_int(u) for statics.
   void set_state(const Vector& u, const Vector& v, Scalar time = 0);
   /// Goes back to a state() taken earlier (undo): every field, the plastic table and its rest
   /// shapes with it; refused for a state from before a cut or of another solver.
@@ -209,7 +209,7 @@ class Solver {
   }
   Vector von_mises_stress() const;
   /// Whether a user constraint holds this dof.
-  bool is_constrained(Index dof) const { return system_.constrained(dof); }
+  bool is_constrained(Index dof) const { return system_.constrained(checked_index(dof, num_dofs(), "dof")); }
   /// Number of distinct element shapes (elements that are translated copies share their
   /// precomputed data: one for a structured Hex8 grid, six for its Kuhn Tet4 split).
   Index num_element_shapes() const { return body_.data().num_shapes(); }

@@ -260,7 +260,11 @@ void Solver<E, Elastic, Plastic, Enrich>::set_state(const Vector& u, const Vecto
   s.u = u, s.v = v, s.t = time;
   s.plastic = current_.plastic;
   Vector f(num_dofs());
-  if (body_.assemble(u, f, nullptr, TangentKind::Projected, threads())) s.load = f;
+  // A u the model is undefined at (an inverted element of a ln J model) or whose forces
+  // overflow would give NaN observables until a step refused it: refused here.
+  if (!body_.assemble(u, f, nullptr, TangentKind::Projected, threads()))
+    fail<InvalidArgument>("set_state: the model cannot be evaluated at u{}", body_.locate_invalid(u));
+  s.load = f;
   s.serial = ++serial_;
   s.lineage = cut_owner_.id();
   current_.swap(s);
