@@ -215,7 +215,8 @@ class Dynamics {
   /// " (element e is inverted ...)" for a non-finite force at u, or "" if none is found.
   std::string where_invalid(Parts& p, const Vector& u) const {
     std::string s = p.body.locate_invalid(u);
-    return s.empty() ? " (external loads or prescribed motion not finite)" : s;
+    // Every element force finite: the loads, the path or the sums over them (an overflow).
+    return s.empty() ? " (external loads or prescribed motion not finite, or the residual overflowed)" : s;
   }
 
  private:

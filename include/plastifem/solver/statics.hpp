@@ -125,7 +125,8 @@ class Statics {
     [[noreturn]] void invalid(const Vector& u) const {
       const std::string where = p.body.locate_invalid(u);
       fail<SolverError>("static Newton: the residual is not finite{}",
-                        where.empty() ? " (external loads or prescribed displacements not finite)" : where);
+                        where.empty() ? " (external loads or prescribed displacements not finite, or the residual overflowed)"
+                                      : where);
     }
     LinearSolveReport solve(int, Scalar, Scalar, Vector& du) {
       s.rhs_ = -s.r_;
