@@ -12,20 +12,30 @@
 //  - the box tests that decide which elements a cut meets;
 //  - the compressed stiffness rule of a cut element: the non-negative least squares under it
 //    (exact fits and its optimality conditions), the rule's size, signs and moments, and the
-//    fields it gives against the full sub-element rule.
+//    fields it gives against the full sub-element rule;
+//  - the Wedge6 split chosen from global node ids: for every numbering of a prism, a partition
+//    into 3 positive tetrahedra splitting each quadrilateral face through its lowest id; on cut
+//    meshes, neighbours split each shared face alike and trace the same cut on it;
+//  - the cut VTU output (io::write_cut_vtu): pieces of positive volume adding up to their
+//    element's, blending elements labelled by their side of the cut.
 #include "catch.hpp"
 #include "free_piece.hpp"
 
 #include <plastifem/core/rotation.hpp>
 #include <plastifem/enrichment/enrichment.hpp>
 #include <plastifem/cutting.hpp>
+#include <plastifem/enrichment/output.hpp>
 #include <plastifem/plastifem.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <random>
+#include <set>
+#include <sstream>
 #include <type_traits>
 
 using namespace plastifem;
@@ -49,6 +59,14 @@ Scalar volume_of(const std::vector<ReferenceTet>& pieces) {
   Scalar v = 0;
   for (const auto& t : pieces) v += tet_volume(t);
   return v;
+}
+
+/// Node ids 0, 1, ..., N - 1: the reference element as a mesh element of its own.
+template <FiniteElement E>
+std::array<Index, E::num_nodes> local_ids() {
+  std::array<Index, E::num_nodes> ids;
+  for (int a = 0; a < E::num_nodes; ++a) ids[static_cast<size_t>(a)] = a;
+  return ids;
 }
 
 }  // namespace
@@ -147,7 +165,7 @@ TEST_CASE("element split by a plane: Tet10 and Hex8 sides have the exact volumes
   const Mesh<Hex8> hex = bar_mesh<Hex8>(1, 1, 1);
   std::array<Scalar, 8> ph;
   for (int a = 0; a < 8; ++a) ph[a] = n.dot(hex.node(hex.element(0)[a])) - c;
-  const auto sides = split_element<Hex8>(ph);
+  const auto sides = split_element<Hex8>(ph, sub_tetrahedra_of<Hex8>(hex.element(0)));
   // Reference volume of the cube [-1, 1]^3 is 8: physical = reference / 8.
   CHECK(std::abs(volume_of(sides[0]) / 8 - above) <= 1e-6);
   CHECK(std::abs((volume_of(sides[0]) + volume_of(sides[1])) / 8 - 1) <= 1e-14);
@@ -156,7 +174,7 @@ TEST_CASE("element split by a plane: Tet10 and Hex8 sides have the exact volumes
   for (Index e = 0; e < tets.num_elements(); ++e) {
     std::array<Scalar, 10> p;
     for (int a = 0; a < 10; ++a) p[a] = n.dot(tets.node(tets.element(e)[a])) - c;
-    const auto s = split_element<Tet10>(p);
+    const auto s = split_element<Tet10>(p, sub_tetrahedra_of<Tet10>(tets.element(e)));
     const Scalar J = jacobian<Tet10>(tets.element_nodes(e), Vec3(0.25, 0.25, 0.25)).determinant();
     v_above += volume_of(s[0]) * J, v_total += (volume_of(s[0]) + volume_of(s[1])) * J;
   }
@@ -212,7 +230,7 @@ TEST_CASE("compressed cut-element rule: few positive points with the full rule's
       const Vec3 centre = Xref.rowwise().mean() + 0.25 * Vec3(U(rng), U(rng), U(rng));
       std::array<Scalar, E::num_nodes> phi;
       for (int a = 0; a < E::num_nodes; ++a) phi[a] = normal.dot(Vec3(Xref.col(a)) - centre);
-      for (const auto& pieces : split_element<E>(phi)) {
+      for (const auto& pieces : split_element<E>(phi, sub_tetrahedra_of<E>(local_ids<E>()))) {
         if (pieces.empty()) continue;
         const ReferencePoints full = piece_quadrature<E::piece_stiffness_degree>(pieces);
         if (full.xi.size() <= exponents.size()) continue;
@@ -1574,4 +1592,281 @@ TEST_CASE("X-FEM: growing a cut to a surface that does not contain it is refused
   // The blade moved on from where it was: accepted.
   s.grow_cut(h, CutPatch(Vec3(2.55, -0.1, 3.1), Vec3(0, 2.2, 0), Vec3(0.1, 0, -2.0)));
   CHECK(s.num_dofs() > n);
+}
+
+namespace {
+
+/// Six times the signed volume of the tetrahedron (a, b, c, d).
+Scalar signed_volume6(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  return (b - a).cross(c - a).dot(d - a);
+}
+
+/// Which diagonal of quadrilateral face f of E the tetrahedra `tets` (local nodes) split it by:
+/// 0 the one from faces[f][0] to faces[f][2], 1 from faces[f][1] to faces[f][3], -1 neither or both.
+template <FiniteElement E, class Tets>
+int face_diagonal(const Tets& tets, int f) {
+  const auto& q = E::faces[static_cast<size_t>(f)];
+  bool has[2] = {false, false};
+  for (const auto& t : tets)
+    for (int d = 0; d < 2; ++d)
+      has[d] = has[d] || (std::find(t.begin(), t.end(), q[static_cast<size_t>(d)]) != t.end() &&
+                          std::find(t.begin(), t.end(), q[static_cast<size_t>(d) + 2]) != t.end());
+  return has[0] == has[1] ? -1 : has[0] ? 0 : 1;
+}
+
+/// What the Wedge6 mesh test measures on the quadrilateral faces two cut elements share.
+struct FaceTraces {
+  int faces = 0;             ///< shared by two cut elements
+  int diagonals_differ = 0;  ///< split by different diagonals (global node pairs) from either side
+  Scalar worst = 0;          ///< largest |area above the cut from one element - from the other| / face area
+};
+
+/// For every quadrilateral face two cut elements of a cut Wedge6 mesh share: the area of the face
+/// on each side of the cut as the pieces of either element trace it (the triangles of pieces that
+/// lie on the face), in face coordinates (s, t) in [0, 1]^2 that both elements share: the corners
+/// in cyclic order from the lowest global id towards its lower neighbour. The face map is the
+/// bilinear interpolant of the corners from either side, so a region of the face is one region
+/// of (s, t); a conforming split gives both elements one piecewise-planar cut, so the same areas.
+FaceTraces wedge_face_traces(const Mesh<Wedge6>& mesh, const Enrichment<Wedge6>& en) {
+  std::map<std::array<Index, 4>, std::vector<std::pair<Index, int>>> faces;  // sorted ids -> (element, face)
+  for (Index e = 0; e < mesh.num_elements(); ++e)
+    for (int f = 2; f < 5; ++f) {
+      std::array<Index, 4> key;
+      const auto& q = Wedge6::faces[static_cast<size_t>(f)];
+      for (int k = 0; k < 4; ++k) key[static_cast<size_t>(k)] = mesh.element(e)[q[static_cast<size_t>(k)]];
+      std::sort(key.begin(), key.end());
+      faces[key].emplace_back(e, f);
+    }
+  const auto Xref = Wedge6::reference_nodes();
+  auto trace = [&](Index e, int f) {
+    const auto& q = Wedge6::faces[static_cast<size_t>(f)];
+    auto id = [&](int k) { return mesh.element(e)[q[static_cast<size_t>((k + 4) % 4)]]; };
+    int k0 = 0;
+    for (int k = 1; k < 4; ++k)
+      if (id(k) < id(k0)) k0 = k;
+    const int dir = id(k0 + 1) < id(k0 + 3) ? 1 : -1;
+    auto corner = [&](int j) { return Vec3(Xref.col(q[static_cast<size_t>((k0 + dir * j + 8) % 4)])); };
+    const Vec3 p0 = corner(0), du = corner(1) - p0, dv = corner(3) - p0, n = du.cross(dv).normalized();
+    Eigen::Matrix<Scalar, 3, 2> D;
+    D << du, dv;
+    const Eigen::Matrix<Scalar, 2, 3> to_st = (D.transpose() * D).inverse() * D.transpose();
+    std::array<Scalar, 2> area{0, 0};
+    for (int s = 0; s < 2; ++s)
+      for (const ReferenceTet& t : en.element(e)->pieces[static_cast<size_t>(s)])
+        for (int skip = 0; skip < 4; ++skip) {  // the piece's triangle opposite vertex `skip`
+          bool on_face = true;
+          std::array<Eigen::Vector2d, 3> x;
+          for (int j = 0, m = 0; j < 4; ++j)
+            if (j != skip) {
+              on_face = on_face && std::abs(n.dot(t[static_cast<size_t>(j)] - p0)) <= 1e-12;
+              x[static_cast<size_t>(m++)] = to_st * (t[static_cast<size_t>(j)] - p0);
+            }
+          const Eigen::Vector2d a = x[1] - x[0], b = x[2] - x[0];
+          if (on_face) area[static_cast<size_t>(s)] += std::abs(a.x() * b.y() - a.y() * b.x()) / 2;
+        }
+    return area;
+  };
+  auto diagonal = [&](Index e, int f) -> std::pair<Index, Index> {  // the global node pair
+    const int d = face_diagonal<Wedge6>(sub_tetrahedra_of<Wedge6>(mesh.element(e)), f);
+    const auto& q = Wedge6::faces[static_cast<size_t>(f)];
+    if (d < 0) return {-1, -1};
+    return std::minmax(mesh.element(e)[q[static_cast<size_t>(d)]], mesh.element(e)[q[static_cast<size_t>(d) + 2]]);
+  };
+  FaceTraces r;
+  for (const auto& [key, sharing] : faces) {
+    if (sharing.size() != 2) continue;
+    const auto [e0, f0] = sharing[0];
+    const auto [e1, f1] = sharing[1];
+    const auto* c0 = en.element(e0);
+    const auto* c1 = en.element(e1);
+    if (!c0 || !c1 || c0->num_sides != 2 || c1->num_sides != 2) continue;
+    ++r.faces;
+    const auto a0 = trace(e0, f0), a1 = trace(e1, f1);
+    r.worst = std::max(r.worst, std::abs(a0[0] - a1[0]) / (a0[0] + a0[1]));  // the sides' areas add up to 1
+    r.diagonals_differ += diagonal(e0, f0) != diagonal(e1, f1) || diagonal(e0, f0).first < 0;
+  }
+  return r;
+}
+
+}  // namespace
+
+TEST_CASE("Wedge6 split from global node numbers matches across shared faces", "[enrichment]") {
+  // (a) Every numbering of one reference prism (720): three tetrahedra of positive volume 1/3
+  // (the prism's is 1) that partition it (random points each in exactly one), each quadrilateral
+  // face split by its diagonal through its lowest id; the numberings reach all 6 of the prism's
+  // splits into 3 tetrahedra (the diagonal choices but the 2 cyclic ones).
+  const auto Xref = Wedge6::reference_nodes();
+  std::array<Index, 6> ids{0, 1, 2, 3, 4, 5};
+  int numberings = 0, bad_volume = 0, bad_diagonal = 0, bad_partition = 0;
+  std::set<std::array<int, 3>> choices;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<Scalar> u(0, 1);
+  do {
+    ++numberings;
+    const auto tets = Wedge6::conforming_sub_tetrahedra(ids);
+    Scalar total = 0;
+    for (const auto& t : tets) {
+      const Scalar v = signed_volume6(Xref.col(t[0]), Xref.col(t[1]), Xref.col(t[2]), Xref.col(t[3])) / 6;
+      bad_volume += !(std::abs(v - 1.0 / 3) <= 1e-15);
+      total += v;
+    }
+    bad_volume += !(std::abs(total - Wedge6::reference_volume) <= 1e-15);
+    std::array<int, 3> choice{};
+    for (int f = 2; f < 5; ++f) {
+      const auto& q = Wedge6::faces[static_cast<size_t>(f)];
+      const int d = face_diagonal<Wedge6>(tets, f);
+      Index lowest = ids[static_cast<size_t>(q[0])];
+      for (int k = 1; k < 4; ++k) lowest = std::min(lowest, ids[static_cast<size_t>(q[static_cast<size_t>(k)])]);
+      bad_diagonal += d < 0 || (ids[static_cast<size_t>(q[static_cast<size_t>(d)])] != lowest &&
+                                ids[static_cast<size_t>(q[static_cast<size_t>(d) + 2])] != lowest);
+      choice[static_cast<size_t>(f - 2)] = d;
+    }
+    choices.insert(choice);
+    for (int k = 0; k < 20; ++k) {
+      Scalar x = u(rng), y = u(rng);
+      if (x + y > 1) x = 1 - x, y = 1 - y;
+      const Vec3 p(x, y, 2 * u(rng) - 1);
+      int inside = 0;
+      for (const auto& t : tets) {
+        Mat3 A;
+        A << Xref.col(t[1]) - Xref.col(t[0]), Xref.col(t[2]) - Xref.col(t[0]), Xref.col(t[3]) - Xref.col(t[0]);
+        const Vec3 b = A.inverse() * (p - Xref.col(t[0]));
+        inside += (b.array() >= -1e-12).all() && b.sum() <= 1 + 1e-12;
+      }
+      bad_partition += inside != 1;
+    }
+  } while (std::next_permutation(ids.begin(), ids.end()));
+  CHECK(numberings == 720);
+  CHECK(bad_volume == 0);
+  CHECK(bad_diagonal == 0);
+  CHECK(bad_partition == 0);
+  CHECK(choices.size() == 6);
+
+  // (b) Meshes cut by a curved level set: a sphere through a box of prisms (right prisms: a plane
+  // cut would be exact with any split), and a plane through a thick spherical shell (frustum
+  // prisms: the level set of a plane is not linear in reference coordinates). On every
+  // quadrilateral face two cut elements share, both split it by the same diagonal, and their
+  // pieces trace the same areas on either side of the cut.
+  auto check = [](const Mesh<Wedge6>& mesh, const Cut& cut, const char* what) {
+    Solver<Wedge6, Linear, NoPlasticity, Heaviside> s(mesh, tissue);
+    s.cut(cut);
+    const FaceTraces r = wedge_face_traces(mesh, s.enrichment());
+    INFO(what << ": " << s.last_cut_report().cut_elements << " cut elements, " << r.faces
+              << " faces shared by two, split by different diagonals " << r.diagonals_differ
+              << ", largest trace mismatch " << r.worst << " of a face");
+    CHECK(r.faces > 50);
+    CHECK(r.diagonals_differ == 0);
+    CHECK(r.worst <= 1e-12);
+  };
+  const TriangleSurface ball = sphere_surface(Vec3(2.1, 1.9, 2.2), 1.45, 3);
+  std::vector<Vec3> v;
+  for (Index i = 0; i < ball.num_vertices(); ++i) v.emplace_back(ball.vertices.col(i));
+  check(bar_mesh<Wedge6>(4, 4, 4), CutSurface(v, ball.triangles), "box of prisms, sphere");
+  check(thick_shell_wedge6(sphere_surface(Vec3::Zero(), 1, 2), 0.3, 2),
+        CutPlane(Vec3(0.1, 0.15, 0.2), Vec3(0.3, 0.5, 1)), "thick shell, plane");
+}
+
+namespace {
+
+/// The cells of an ASCII file written by io::write_cut_vtu: the points, each cell's points, and
+/// the cell data.
+struct CutVtu {
+  std::vector<Vec3> points;
+  std::vector<std::vector<Index>> cells;
+  std::vector<int> type, side, element;
+};
+
+CutVtu read_cut_vtu(const std::string& path) {
+  std::ifstream file(path);
+  std::stringstream buffer;
+  buffer << file.rdbuf();
+  const std::string text = buffer.str();
+  // The values of the DataArray whose opening tag holds (or, for "<Points>", follows) `tag`.
+  auto values = [&](const std::string& tag) {
+    size_t at = text.find(tag);
+    REQUIRE(at != std::string::npos);
+    if (tag == "<Points>") at = text.find("<DataArray", at);
+    const size_t begin = text.find('>', at) + 1, end = text.find("</DataArray>", begin);
+    std::istringstream in(text.substr(begin, end - begin));
+    std::vector<Scalar> x;
+    for (Scalar y; in >> y;) x.push_back(y);
+    return x;
+  };
+  CutVtu r;
+  const auto p = values("<Points>");
+  for (size_t k = 0; k + 2 < p.size(); k += 3) r.points.emplace_back(p[k], p[k + 1], p[k + 2]);
+  const auto connectivity = values("Name=\"connectivity\""), offsets = values("Name=\"offsets\"");
+  size_t begin = 0;
+  for (Scalar o : offsets) {
+    std::vector<Index> cell;
+    for (size_t k = begin; k < static_cast<size_t>(o); ++k) cell.push_back(static_cast<Index>(connectivity[k]));
+    r.cells.push_back(cell);
+    begin = static_cast<size_t>(o);
+  }
+  for (Scalar t : values("Name=\"types\"")) r.type.push_back(static_cast<int>(t));
+  for (Scalar t : values("Name=\"side\"")) r.side.push_back(static_cast<int>(t));
+  for (Scalar t : values("Name=\"element\"")) r.element.push_back(static_cast<int>(t));
+  return r;
+}
+
+}  // namespace
+
+TEST_CASE("write_cut_vtu: pieces have positive volume, blending elements are labelled by their side of the cut",
+          "[enrichment][io]") {
+  // Bars of every element cut by a slanted plane (Heaviside: blending elements on both sides),
+  // written at rest and read back: every piece (VTK_TETRA) of positive volume, a cut element's
+  // pieces adding up to its volume (box elements: affine, the pieces are exact), every blending
+  // element labelled by the side of the plane its centre is on, standard elements -1.
+  auto check = [&]<class E>() {
+    const Mesh<E> mesh = bar_mesh<E>(4, 2, 2);
+    const CutPlane plane(Vec3(1.83, 0, 0), Vec3(1, 0.3, 0.2));
+    Solver<E, Linear, NoPlasticity, Heaviside> s(mesh, tissue);
+    s.cut(plane);
+    const std::string path = std::string(PLASTIFEM_TEST_OUT) + "/cut_vtu_" + E::name + ".vtu";
+    io::write_cut_vtu(path, mesh, s.enrichment(), s.displacement());
+    const CutVtu f = read_cut_vtu(path);
+    REQUIRE(f.cells.size() == f.side.size());
+    REQUIRE(f.cells.size() == f.element.size());
+    int pieces = 0, not_positive = 0, blending[2] = {0, 0}, wrong_side = 0, wrong_standard = 0, volume_off = 0;
+    std::map<Index, Scalar> piece_volume;
+    for (size_t k = 0; k < f.cells.size(); ++k) {
+      const Index e = f.element[k];
+      const auto* el = s.enrichment().element(e);
+      if (!el) {
+        wrong_standard += f.side[k] != -1;
+        continue;
+      }
+      if (el->num_sides == 1) {
+        const Vec3 centre = mesh.element_nodes(e) * E::shape(reference_centre<E>());
+        const int expected = plane.signed_distance(centre) >= 0 ? 0 : 1;
+        ++blending[expected];
+        wrong_side += f.side[k] != expected;
+        continue;
+      }
+      ++pieces;
+      const auto& c = f.cells[k];
+      const Scalar v = signed_volume6(f.points[static_cast<size_t>(c[0])], f.points[static_cast<size_t>(c[1])],
+                                      f.points[static_cast<size_t>(c[2])], f.points[static_cast<size_t>(c[3])]) / 6;
+      not_positive += !(v > 0);
+      piece_volume[e] += std::abs(v);
+    }
+    for (const auto& [e, v] : piece_volume) {
+      const Scalar V = element_volume<E>(mesh.element_nodes(e));
+      volume_off += !(std::abs(v - V) <= 1e-12 * V);
+    }
+    INFO(E::name << ": " << piece_volume.size() << " cut elements, " << pieces << " pieces (" << not_positive
+                 << " not positive, " << volume_off << " elements whose pieces miss its volume); " << blending[0]
+                 << " blending elements above, " << blending[1] << " below (" << wrong_side << " labelled wrong)");
+    CHECK(pieces > 0);
+    CHECK(blending[0] > 0);
+    CHECK(blending[1] > 0);
+    CHECK(not_positive == 0);
+    CHECK(volume_off == 0);
+    CHECK(wrong_side == 0);
+    CHECK(wrong_standard == 0);
+  };
+  check.template operator()<Tet4>();
+  check.template operator()<Tet10>();
+  check.template operator()<Hex8>();
+  check.template operator()<Wedge6>();
 }

@@ -25,8 +25,11 @@ namespace plastifem {
 ///   with its nodes in `faces[f]` (outward by the right-hand rule; `nodes_per_face` is the
 ///   longest list), and `edges` as node pairs;
 /// - `contains(xi, tol)`: point containment in reference coordinates;
-/// - X-FEM cuts: `sub_tetrahedra` (a split into tetrahedra on the nodes) and the degrees of
-///   the stiffness and mass integrands on a tetrahedral piece (`piece_*_degree`);
+/// - X-FEM cuts: `sub_tetrahedra` (a split into tetrahedra on the nodes), optionally
+///   `conforming_sub_tetrahedra(ids)` (a split chosen from the element's global node ids, used
+///   instead: needed where local numbering alone would let neighbours split a shared
+///   quadrilateral face by different diagonals, as Wedge6's does; enrichment/subdivision.hpp),
+///   and the degrees of the stiffness and mass integrands on a tetrahedral piece (`piece_*_degree`);
 /// - file formats: `vtk_cell_type` (the node order is VTK's), `gmsh_type` and `gmsh_nodes` (the
 ///   Gmsh node of each local node).
 namespace detail {

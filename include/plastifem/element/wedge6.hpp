@@ -126,8 +126,50 @@ struct Wedge6 {
     return xi.x() >= -tol && xi.y() >= -tol && xi.x() + xi.y() <= 1 + tol && std::abs(xi.z()) <= 1 + tol;
   }
 
-  /// Three tetrahedra on the nodes (each of volume 1/3 in reference coordinates).
+  /// Three tetrahedra on the nodes (each of volume 1/3 in reference coordinates), fixed by local
+  /// numbering: the X-FEM split uses conforming_sub_tetrahedra instead.
   static constexpr std::array<std::array<int, 4>, 3> sub_tetrahedra{{{0, 1, 2, 3}, {1, 2, 3, 4}, {2, 3, 4, 5}}};
+
+  /// The split into three tetrahedra chosen from the element's global node ids (Dompierre,
+  /// Labbe, Vallet and Camarero 1999, "How to subdivide pyramids, prisms and hexahedra into
+  /// tetrahedra"): every quadrilateral face is split by its diagonal through the face's lowest
+  /// id, so two prisms sharing a face split it alike (the X-FEM cut's piecewise-planar
+  /// interpolant then meets itself across the face). The lowest id v of the element is on two
+  /// quadrilaterals, whose diagonals both end at v: the tetrahedron of v and the opposite
+  /// triangle, and the pyramid of v over the third quadrilateral, split by that face's own
+  /// diagonal. (Of the 8 choices of three diagonals, the 2 cyclic ones have no split into 3
+  /// tetrahedra; this rule never makes them.) Local node indices, each tetrahedron of positive
+  /// volume in reference coordinates.
+  template <class Id>
+  static constexpr std::array<std::array<int, 4>, 3> conforming_sub_tetrahedra(const std::array<Id, 6>& ids) {
+    int v = 0;
+    for (int k = 1; k < 6; ++k)
+      if (ids[static_cast<size_t>(k)] < ids[static_cast<size_t>(v)]) v = k;
+    const int level = v < 3 ? 0 : 3, up = 3 - level;  // v's triangle, and the other one's offset from it
+    const int a = level + (v - level + 1) % 3, b = level + (v - level + 2) % 3;  // the rest of v's triangle
+    const int ap = a + up - level, bp = b + up - level, vp = v + up - level;      // their partners
+    std::array<std::array<int, 4>, 3> t{};
+    t[0] = {v, vp, ap, bp};
+    // The quadrilateral a-b-b'-a' (without v): its diagonal through its lowest id.
+    int low = a;
+    for (int c : {b, bp, ap})
+      if (ids[static_cast<size_t>(c)] < ids[static_cast<size_t>(low)]) low = c;
+    if (low == a || low == bp) t[1] = {v, a, b, bp}, t[2] = {v, a, bp, ap};
+    else t[1] = {v, a, b, ap}, t[2] = {v, b, bp, ap};
+    for (auto& tet : t)
+      if (reference_orientation(tet) < 0) std::swap(tet[2], tet[3]);
+    return t;
+  }
+  /// Six times the signed volume of a tetrahedron on the nodes, in reference coordinates.
+  static constexpr int reference_orientation(const std::array<int, 4>& t) {
+    // The nodes as reference_nodes() places them.
+    constexpr int X[6][3] = {{0, 0, -1}, {0, 1, -1}, {1, 0, -1}, {0, 0, 1}, {0, 1, 1}, {1, 0, 1}};
+    int d[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) d[r][k] = X[t[static_cast<size_t>(r) + 1]][k] - X[t[0]][k];
+    return d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
+           d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0]);
+  }
   /// Degrees of the integrands on a tetrahedral piece of a right prism (the X-FEM pieces'
   /// rules): each dN/dxi has total degree 1 (linear in zeta, or in (xi, eta)), so the stiffness
   /// integrand has degree 2 in all and in each variable; the mass N_a N_b total degree 4.

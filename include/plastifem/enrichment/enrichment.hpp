@@ -175,7 +175,7 @@ class Enrichment {
     for (Index e : cut) {
       std::array<Scalar, N> p;
       for (int a = 0; a < N; ++a) p[a] = phi[mesh.element(e)[a]];
-      pieces[e] = split_element<E>(p);
+      pieces[e] = split_element<E>(p, sub_tetrahedra_of<E>(mesh.element(e)));
       const ElementNodes<E> X = mesh.element_nodes(e);
       for (int s = 0; s < 2; ++s) {
         const auto q = piece_quadrature<1>(pieces[e][s]);

@@ -3,14 +3,22 @@
 // which the standard elements are written as usual, on the mesh's nodes moved by their
 // displacement, and every enriched element as what it is:
 //  - a cut element as its pieces on either side (tetrahedra, VTK_TETRA), each with points of its
-//    own, moved with its own side's displacement sum_a N_a (u_a + sum psi^s a): the cut opens up;
+//    own, moved with its own side's displacement sum_a N_a (u_a + sum psi^s a): the cut opens up.
+//    Each piece is written with positive volume at rest (vertices 2 and 3 swapped where the split
+//    left it negative): ParaView draws a negative tetrahedron inside out, and VTK filters that
+//    assume positive cells (volumes, normals, clipping) get it wrong;
 //  - a blending element (enriched dofs, not cut) as itself, on points of its own moved by
-//    u_a + sum psi a.
+//    u_a + sum psi a. Its side is the sign of the mean level set at its nodes (>= 0: 0, < 0: 1)
+//    of the cut its enriched dofs belong to (of several, the one whose level set is known at
+//    most of its nodes; the level set is evaluated only near a cut): a blending element lies
+//    wholly on one side of that cut.
 // One file, mixed cell types. Point data: `displacement`; cell data: `side` (0 above, 1 below the
 // cut, -1 a standard element) and `element` (the mesh element each cell comes from).
 #include <plastifem/enrichment/enrichment.hpp>
 #include <plastifem/mesh/io/vtu.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -32,6 +40,22 @@ void write_cut_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const
     offsets.push_back(static_cast<std::int64_t>(connectivity.size()));
     types.push_back(type), side.push_back(s), element.push_back(static_cast<int>(e));
   };
+  // A blending element's side (file comment).
+  auto blending_side = [&](const auto& c, const CutElement<E>& el) {
+    int best = -1, best_known = -1;
+    for (int k = 0; k < enrichment.num_cuts(); ++k) {
+      const bool carries = std::any_of(el.enriched.begin(), el.enriched.end(),
+                                       [&](const EnrichedDof& d) { return enrichment.row(k, c[d.node]) == d.row; });
+      int known = 0;
+      for (int a = 0; a < N; ++a) known += std::isfinite(enrichment.level_set(k, c[a]));
+      if (carries && known > best_known) best = k, best_known = known;
+    }
+    if (best < 0) return 0;
+    Scalar sum = 0;
+    for (int a = 0; a < N; ++a)
+      if (const Scalar phi = enrichment.level_set(best, c[a]); std::isfinite(phi)) sum += phi;
+    return sum >= 0 ? 0 : 1;
+  };
   for (Index e = 0; e < mesh.num_elements(); ++e) {
     const auto& c = mesh.element(e);
     const CutElement<E>* cut = enrichment.element(e);
@@ -52,10 +76,13 @@ void write_cut_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const
           points.push_back(X.col(a));
           displacement.push_back(Us.col(a));
         }
-        close_cell(E::vtk_cell_type, s, e);
+        close_cell(E::vtk_cell_type, blending_side(c, *cut), e);
         continue;
       }
-      for (const ReferenceTet& t : cut->pieces[s]) {
+      for (ReferenceTet t : cut->pieces[s]) {
+        std::array<Vec3, 4> x;
+        for (int k = 0; k < 4; ++k) x[k] = X * E::shape(t[k]);
+        if ((x[1] - x[0]).cross(x[2] - x[0]).dot(x[3] - x[0]) < 0) std::swap(t[2], t[3]);
         for (const Vec3& xi : t) {
           const auto Nxi = E::shape(xi);
           connectivity.push_back(static_cast<std::int64_t>(points.size()));

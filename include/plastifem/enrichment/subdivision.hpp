@@ -4,9 +4,15 @@
 // its own quadrature points and weights.
 //
 // 1. The reference element is decomposed into reference tetrahedra whose vertices are element
-//    nodes: Tet4 itself; Tet10 into 8 (its four corner tetrahedra and the inner octahedron split
-//    along the 6-8 diagonal); Hex8 into the 6 tetrahedra around its 0-6 diagonal (the Kuhn
-//    split); Wedge6 into 3 (each element's sub_tetrahedra trait).
+//    nodes (sub_tetrahedra_of): Tet4 itself; Tet10 into 8 (its four corner tetrahedra and the
+//    inner octahedron split along the 6-8 diagonal); Hex8 into the 6 tetrahedra around its 0-6
+//    diagonal (the Kuhn split); Wedge6 into 3 chosen from its global node ids
+//    (Wedge6::conforming_sub_tetrahedra). Neighbours must split a shared face alike, or a curved
+//    cut's interpolant (below) does not meet itself across it: Tet4 and Tet10 faces are split
+//    alike by any numbering, a Wedge6 quadrilateral by its diagonal through its lowest global
+//    id, and a Hex8 face by its diagonal through local node 0 or 6, alike in grids whose cells
+//    are numbered alike (bar_mesh, cages) but not in general (a hex mesh from Gmsh, a thick
+//    shell of an unstructured quad surface): a known limitation.
 // 2. On each of them the level set is the linear interpolant of its vertices' nodal values, and
 //    the tetrahedron is split by that plane: the thesis' case analysis by the signs of the four
 //    values (+ - - -: a tetrahedron and a prism; + + - -: two prisms; with a vertex on the cut
@@ -38,6 +44,8 @@
 
 #include <array>
 #include <cmath>
+#include <span>
+#include <type_traits>
 #include <vector>
 
 namespace plastifem {
@@ -45,10 +53,20 @@ namespace plastifem {
 /// A reference sub-tetrahedron: four points in the element's reference coordinates.
 using ReferenceTet = std::array<Vec3, 4>;
 
-/// The element's decomposition into reference tetrahedra with element nodes as vertices.
+/// The decomposition of an element with global node ids `ids` into tetrahedra on its nodes
+/// (local indices): the element's conforming_sub_tetrahedra(ids) where it has one (a split
+/// chosen from global ids, matching its neighbours'), else its fixed sub_tetrahedra.
 template <FiniteElement E>
-std::vector<std::array<int, 4>> reference_tetrahedra() {
-  return {E::sub_tetrahedra.begin(), E::sub_tetrahedra.end()};
+auto sub_tetrahedra_of(const std::array<Index, E::num_nodes>& ids) {
+  if constexpr (requires { E::conforming_sub_tetrahedra(ids); }) {
+    using Fixed = std::remove_const_t<decltype(E::sub_tetrahedra)>;
+    static_assert(std::is_same_v<decltype(E::conforming_sub_tetrahedra(ids)), Fixed>,
+                  "conforming_sub_tetrahedra returns as many tetrahedra as sub_tetrahedra");
+    return E::conforming_sub_tetrahedra(ids);
+  } else {
+    (void)ids;
+    return E::sub_tetrahedra;
+  }
 }
 
 inline Scalar tet_volume(const ReferenceTet& t) {
@@ -177,12 +195,14 @@ inline ReferencePoints compress_rule(const ReferencePoints& rule, const std::vec
 }
 
 /// The two sides of an element cut by a level set with nodal values phi: its reference pieces
-/// on each side (phi >= 0: side 0, "above"; phi < 0: side 1, "below").
+/// on each side (phi >= 0: side 0, "above"; phi < 0: side 1, "below"), split on its tetrahedra
+/// `tets` (local nodes: sub_tetrahedra_of(the element's node ids)).
 template <FiniteElement E>
-std::array<std::vector<ReferenceTet>, 2> split_element(const std::array<Scalar, E::num_nodes>& phi) {
+std::array<std::vector<ReferenceTet>, 2> split_element(const std::array<Scalar, E::num_nodes>& phi,
+                                                       std::span<const std::array<int, 4>> tets) {
   std::array<std::vector<ReferenceTet>, 2> sides;
   const auto Xref = E::reference_nodes();
-  for (const auto& t : reference_tetrahedra<E>()) {
+  for (const auto& t : tets) {
     const ReferenceTet v{Vec3(Xref.col(t[0])), Vec3(Xref.col(t[1])), Vec3(Xref.col(t[2])), Vec3(Xref.col(t[3]))};
     split_tetrahedron(v, {phi[t[0]], phi[t[1]], phi[t[2]], phi[t[3]]}, sides[0], sides[1]);
   }

@@ -104,9 +104,9 @@ Mesh<Hex8> box_hex8(const BoxSpec& b) {
 }
 
 /// Wedge6 grid: each cell split into 2 prisms along the diagonal of its z faces from (0,0) to
-/// (1,1), the same in every cell, so neighbours' faces match. (Their sub-tetrahedra, which the
-/// X-FEM integrates on, split a shared quadrilateral face by local numbering and so can meet a
-/// neighbour's by the other diagonal: docs/xfem.md.)
+/// (1,1), the same in every cell, so neighbours' faces match. (The sub-tetrahedra the X-FEM
+/// integrates on split a shared quadrilateral face through its lowest global node, alike from
+/// both sides: Wedge6::conforming_sub_tetrahedra, docs/xfem.md.)
 template <class = void>
 Mesh<Wedge6> box_wedge6(const BoxSpec& b) {
   detail::check_box(b);
