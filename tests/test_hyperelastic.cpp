@@ -366,14 +366,24 @@ TEST_CASE("ln J Neo-Hookean: an inverted start gives a clear error and an unchan
   solver.fix(std::vector<Index>{0, 1, 2});
   Vector u = Vector::Zero(12);
   u[11] = -1.5;
-  solver.set_state(u, Vector::Zero(12));
+  // Refused where it is set (before 2026-12-02 set_state took it, and the first step refused it).
+  const auto before = solver.state();
+  try {
+    solver.set_state(u, Vector::Zero(12));
+    FAIL("expected InvalidArgument");
+  } catch (const InvalidArgument& e) {
+    REQUIRE(std::string(e.what()).find("element 0 is inverted") != std::string::npos);
+  }
+  REQUIRE(solver.state() == before);
+  // A step that would end inverted (the apex prescribed through its base) is refused likewise.
+  solver.prescribe(std::vector<Index>{3}, [](Scalar t, const Vec3&) { return Vec3(0, 0, -150 * t); });
   try {
     solver.step(0.01);
     FAIL("expected SolverError");
   } catch (const SolverError& e) {
     REQUIRE(std::string(e.what()).find("element 0 is inverted") != std::string::npos);
   }
-  REQUIRE(solver.displacement() == u);
+  REQUIRE(solver.displacement() == before.u);
   REQUIRE(solver.time() == 0);
 }
 
