@@ -141,7 +141,7 @@ struct Wedge6 {
   /// tetrahedra; this rule never makes them.) Local node indices, each tetrahedron of positive
   /// volume in reference coordinates.
   template <class Id>
-  static constexpr std::array<std::array<int, 4>, 3> conforming_sub_tetrahedra(const std::array<Id, 6>& ids) {
+  static std::array<std::array<int, 4>, 3> conforming_sub_tetrahedra(const std::array<Id, 6>& ids) {
     int v = 0;
     for (int k = 1; k < 6; ++k)
       if (ids[static_cast<size_t>(k)] < ids[static_cast<size_t>(v)]) v = k;
@@ -161,14 +161,10 @@ struct Wedge6 {
     return t;
   }
   /// Six times the signed volume of a tetrahedron on the nodes, in reference coordinates.
-  static constexpr int reference_orientation(const std::array<int, 4>& t) {
-    // The nodes as reference_nodes() places them.
-    constexpr int X[6][3] = {{0, 0, -1}, {0, 1, -1}, {1, 0, -1}, {0, 0, 1}, {0, 1, 1}, {1, 0, 1}};
-    int d[3][3];
-    for (int r = 0; r < 3; ++r)
-      for (int k = 0; k < 3; ++k) d[r][k] = X[t[static_cast<size_t>(r) + 1]][k] - X[t[0]][k];
-    return d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
-           d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0]);
+  static Scalar reference_orientation(const std::array<int, 4>& t) {
+    const NodeMatrix X = reference_nodes();
+    const Vec3 o = X.col(t[0]);
+    return (X.col(t[1]) - o).cross(X.col(t[2]) - o).dot(X.col(t[3]) - o);
   }
   /// Degrees of the integrands on a tetrahedral piece of a right prism (the X-FEM pieces'
   /// rules): each dN/dxi has total degree 1 (linear in zeta, or in (xi, eta)), so the stiffness

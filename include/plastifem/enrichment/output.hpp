@@ -79,15 +79,19 @@ void write_cut_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const
         close_cell(E::vtk_cell_type, blending_side(c, *cut), e);
         continue;
       }
-      for (ReferenceTet t : cut->pieces[s]) {
-        std::array<Vec3, 4> x;
-        for (int k = 0; k < 4; ++k) x[k] = X * E::shape(t[k]);
-        if ((x[1] - x[0]).cross(x[2] - x[0]).dot(x[3] - x[0]) < 0) std::swap(t[2], t[3]);
-        for (const Vec3& xi : t) {
-          const auto Nxi = E::shape(xi);
+      for (const ReferenceTet& t : cut->pieces[s]) {
+        std::array<Vec3, 4> x, d;
+        for (int k = 0; k < 4; ++k) {
+          const auto Nxi = E::shape(t[static_cast<size_t>(k)]);
+          x[static_cast<size_t>(k)] = X * Nxi, d[static_cast<size_t>(k)] = Us * Nxi;
+        }
+        // Written with positive volume: a piece inverted by the element's map swaps two nodes.
+        std::array<int, 4> order{0, 1, 2, 3};
+        if ((x[1] - x[0]).cross(x[2] - x[0]).dot(x[3] - x[0]) < 0) std::swap(order[2], order[3]);
+        for (int k : order) {
           connectivity.push_back(static_cast<std::int64_t>(points.size()));
-          points.push_back(X * Nxi);
-          displacement.push_back(Us * Nxi);
+          points.push_back(x[static_cast<size_t>(k)]);
+          displacement.push_back(d[static_cast<size_t>(k)]);
         }
         close_cell(10, s, e);  // VTK_TETRA
       }
