@@ -312,6 +312,33 @@ TEST_CASE("restore: a plastic table of another policy is refused, and the curren
   CHECK(s.state() == now);
 }
 
+TEMPLATE_TEST_CASE("restore: thresholds hardened past every finite stress stay finite, so the state restores",
+                   "[state][restore][plasticity]", VertexBlended, CellCentered) {
+  // Found by review (2026-12-02). tau += kappa gamma |s| (eq. 4's hardening) overflowed to +inf
+  // for a valid but extreme kappa = 1e300 with stress_scale 1e100, and restore() then refused the
+  // solver's own saved state ("values that are not finite"). A threshold is now held at the
+  // largest double: no finite stress exceeds either, so the flow is the same.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(6, 2, 2);
+  PlasticParams p;
+  p.yield_stress = 1000, p.flow_rate = 0.4, p.stress_scale = 1e100, p.hardening = 1e300;
+  Solver<Hex8, Corotational, TestType> s(mesh, soft, {}, p);
+  s.fix(mesh.node_set("xmin"));
+  s.add_nodal_force(mesh.node_set("xmax"), Vec3(0, 0, -20.0));
+  int flowed = 0;
+  for (int k = 0; k < 5; ++k) flowed += s.step(0.02).plastic.points_yielded;
+  CHECK(flowed > 0);  // every point flows once (its scaled stress exceeds 1000), then never again
+  const auto& tau = s.state().plastic.tau;
+  CHECK(std::all_of(tau.begin(), tau.end(), [](Scalar t) { return std::isfinite(t); }));
+  CHECK(std::any_of(tau.begin(), tau.end(), [](Scalar t) { return t == std::numeric_limits<Scalar>::max(); }));
+  const auto saved = s.state();
+  const Vector u = s.displacement();
+  CHECK(s.step(0.02).plastic.points_yielded == 0);
+  s.restore(saved);
+  CHECK(s.state() == saved);
+  CHECK(s.step(0.02).plastic.points_yielded == 0);
+  CHECK((s.displacement() - u).allFinite());
+}
+
 TEST_CASE("restore: another solver's state of the same sizes is refused, a moved solver's is taken",
           "[state][restore][plasticity]") {
   // Found by review (2026-12-01). Sizes were all restore() compared: a state of another solver

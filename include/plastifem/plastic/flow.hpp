@@ -549,7 +549,10 @@ class ElementFlow {
           continue;
         }
         gamma[k] = g;
-        tau_new[k] = en.tau[k] + prm.hardening * g * vm;
+        // Held at the largest double where kappa gamma |s| overflows (kappa and the stress scale
+        // are bounded separately, not their product): no finite stress exceeds either, and the
+        // table stays finite, as a saved state must be.
+        tau_new[k] = std::min(en.tau[k] + prm.hardening * g * vm, std::numeric_limits<Scalar>::max());
         flowed = true;
         ++rep.points_yielded;
         rep.max_gamma = std::max(rep.max_gamma, g);
@@ -594,7 +597,8 @@ class ElementFlow {
         Rp[r] = step;
         pi_new[r] = pi;
         turned[r] = true;
-        tauR_new[r] = en.tau_R[r] + prm.hardening * eta * ph;  // kappa eta phi (eta before the cap)
+        tauR_new[r] = std::min(en.tau_R[r] + prm.hardening * eta * ph,  // kappa eta phi (eta before the cap)
+                               std::numeric_limits<Scalar>::max());
         rotated = true;
         ++rep.rotations_yielded;
         rep.max_rotation = std::max(rep.max_rotation, w.norm());
