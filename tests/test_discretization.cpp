@@ -350,6 +350,19 @@ TEST_CASE("Discretization: an inverted element is named by locate_invalid and fa
   // compressed through zero), so the same state assembles.
   CHECK(corot.assemble(u, f, nullptr, TangentKind::Projected, 1));
   CHECK(corot.locate_invalid(u).empty());
+  // Where a model defined for inverted elements has a non-finite force there, the force
+  // overflowed, and the message says so rather than calling the model undefined (found by
+  // review, 2026-12-02): E = 1e308 (lambda and mu finite) overflows the inverted element's stress.
+  const Discretization<Hex8, Corotational> stiff(mesh, Material{1e308, 0.3, 1.0});
+  CHECK(!stiff.assemble(u, f, nullptr, TangentKind::Projected, 1));
+  const std::string overflow = stiff.locate_invalid(u);
+  INFO(overflow);
+  CHECK(overflow.find("element 2 has a non-finite internal force: it is inverted") != std::string::npos);
+  CHECK(overflow.find("overflowed") != std::string::npos);
+  CHECK(overflow.find("undefined") == std::string::npos);
+  static_assert(defined_when_inverted_v<Corotational> && defined_when_inverted_v<Linear> &&
+                defined_when_inverted_v<CorotationalPerElement> && defined_when_inverted_v<StableNeoHookean> &&
+                !defined_when_inverted_v<NeoHookean> && !defined_when_inverted_v<MooneyRivlin>);
 
   Vector bad = Vector::Zero(n);
   bad[7] = std::numeric_limits<Scalar>::quiet_NaN();

@@ -247,10 +247,16 @@ class Discretization {
       const Scalar w = Elastic::template evaluate<E>(data_[e], x, fe, nullptr);
       if (std::isfinite(w) && fe.allFinite()) continue;
       for (int k = 0; k < q.size; ++k)
-        if (!(jacobian<E>(x, q.points[k]).determinant() > 0))
-          return fmt::format(" (element {} is inverted at quadrature point {}: det F <= 0; {} is undefined there, "
-                             "StableNeoHookean is not)",
-                             e, k, Elastic::name);
+        if (!(jacobian<E>(x, q.points[k]).determinant() > 0)) {
+          if constexpr (defined_when_inverted_v<Elastic>)  // so its force overflowed
+            return fmt::format(" (element {} has a non-finite internal force: it is inverted at quadrature point {}, "
+                               "where {} is defined, so the force overflowed)",
+                               e, k, Elastic::name);
+          else
+            return fmt::format(" (element {} is inverted at quadrature point {}: det F <= 0; {} is undefined there, "
+                               "StableNeoHookean is not)",
+                               e, k, Elastic::name);
+        }
       return fmt::format(" (element {} has a non-finite internal force)", e);
     }
     return "";

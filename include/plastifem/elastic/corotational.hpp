@@ -63,6 +63,7 @@ struct CorotationalPerElementT {
   static constexpr const char* name =
       V == Volumetric::Full ? "CorotationalPerElement" : "CorotationalMeanDilatation";
   static constexpr bool constant_tangent = false;
+  static constexpr bool defined_when_inverted = true;  ///< an inverted element reads as compressed through zero
 
   template <FiniteElement E>
   using ElementData = SmallStrainData<E>;
@@ -138,6 +139,7 @@ struct CorotationalData {
 struct Corotational {
   static constexpr const char* name = "Corotational";
   static constexpr bool constant_tangent = false;
+  static constexpr bool defined_when_inverted = true;  ///< an inverted point reads as compressed through zero
 
   template <FiniteElement E>
   using ElementData = CorotationalData<E>;

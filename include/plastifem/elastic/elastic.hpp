@@ -42,6 +42,12 @@ constexpr bool has_exact_tangent_v = [] {
   else return false;
 }();
 
+/// Whether a model is defined at inverted points (det F <= 0), as it says by
+/// `defined_when_inverted = true` (Linear, the corotational models, StableNeoHookean). A model
+/// that does not say is taken to be undefined there (an energy with ln J): only messages read it.
+template <class M>
+constexpr bool defined_when_inverted_v = requires { requires bool(M::defined_when_inverted); };
+
 // Every model meets the concept on every element: tests/test_elastic.cpp (checked there, not
 // here, so that a file pays only for the compositions it uses; each Solver checks its own).
 

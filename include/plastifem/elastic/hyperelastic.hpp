@@ -159,6 +159,7 @@ struct BasicStableNeoHookeanEnergy {
   using M9 = Eigen::Matrix<T, 9, 9>;
   static constexpr const char* name = "StableNeoHookean";
   static constexpr const char* mean_dilatation_name = "StableNeoHookeanMeanDilatation";
+  static constexpr bool defined_when_inverted = true;  ///< no ln J: U = lambda'/2 (J - alpha)^2
   T mu, lambda, alpha;  ///< the reparametrised mu', lambda' and the rest offset alpha
   T psi_rest;           ///< psi(I), subtracted so that the rest state has zero energy
   explicit BasicStableNeoHookeanEnergy(const Material& m)
@@ -210,6 +211,8 @@ struct Hyperelastic {
   static constexpr const char* name = V == Volumetric::Full ? Energy::name : Energy::mean_dilatation_name;
   static constexpr bool constant_tangent = false;
   static constexpr Volumetric volumetric = V;
+  /// Whether the energy is defined at J <= 0 (it says so; the ln J and Abaqus forms are not).
+  static constexpr bool defined_when_inverted = requires { requires Energy::defined_when_inverted; };
   // The energy's matrix types (Mat3 and Matrix9): written with them, the code below depends on
   // Energy, so a file that uses no hyperelastic model does not instantiate any of it.
   using M3 = typename Energy::M3;

@@ -11,6 +11,7 @@ template <Volumetric V = Volumetric::Full>
 struct LinearElastic {
   static constexpr const char* name = V == Volumetric::Full ? "Linear" : "LinearMeanDilatation";
   static constexpr bool constant_tangent = true;  ///< K does not depend on x: assemble once
+  static constexpr bool defined_when_inverted = true;
 
   template <FiniteElement E>
   using ElementData = SmallStrainData<E>;
