@@ -461,6 +461,44 @@ TEMPLATE_LIST_TEST_CASE("per-point corotational: rigid motions, small strain, ex
   }
 }
 
+TEMPLATE_LIST_TEST_CASE("the reported stress is the force per deformed area: sum_a f_a x_a^T = J V sigma",
+                        "[elastic][stress]", AllElements) {
+  // An independent fact for any element and model: under a homogeneous deformation the nodal
+  // forces f_a = V P grad N_a satisfy sum_a f_a x_a^T = V P F^T = J V sigma (sum_a x_a grad N_a^T
+  // = F). Found by review (2026-12-02): the corotational models reported R C(S - I) R^T, the
+  // rotated Biot stress, 6% below the force per deformed area at a 10% uniaxial stretch.
+  using E = TestType;
+  std::mt19937 rng(31);
+  const ElementNodes<E> X = distorted_element<E>(rng);
+  const Scalar V = element_volume<E>(X);
+  const auto d_elem = prepare_small_strain<E>(X, rubber);
+  const auto d_point = Corotational::prepare<E>(X, rubber);
+  const auto d_neo = NeoHookean::prepare<E>(X, rubber);
+  // A homogeneous stretch (0.10, -0.03, -0.05 in its principal frame), turned and moved.
+  const Mat3 Q = big_rotation();
+  const Mat3 F = Q * Vec3(1.10, 0.97, 0.95).asDiagonal() * Q.transpose() * Eigen::AngleAxisd(0.7, Vec3::UnitY()).toRotationMatrix();
+  ElementNodes<E> x;
+  for (int a = 0; a < E::num_nodes; ++a) x.col(a) = F * X.col(a) + Vec3(0.3, -1, 2);
+  auto first_moment = [&](const ElementVector<E>& f) {
+    Mat3 m = Mat3::Zero();
+    for (int a = 0; a < E::num_nodes; ++a) m += f.template segment<3>(3 * a) * x.col(a).transpose();
+    return Mat3(m / (F.determinant() * V));
+  };
+  ElementVector<E> f;
+  // Stresses ~1e2 here; the forces' sums cancel to ~1e-14 of them, the element's Jacobians
+  // (distorted) lose a few digits more.
+  const Scalar tol = 1e-10 * rubber.young;
+  Corotational::evaluate<E>(d_point, x, f, nullptr);
+  CHECK((first_moment(f) - Corotational::cauchy_stress<E>(d_point, x, rubber)).cwiseAbs().maxCoeff() <= tol);
+  CorotationalPerElement::evaluate<E>(d_elem, x, f, nullptr);
+  CHECK((first_moment(f) - CorotationalPerElement::cauchy_stress<E>(d_elem, x, rubber)).cwiseAbs().maxCoeff() <= tol);
+  NeoHookean::evaluate<E>(d_neo, x, f, nullptr);
+  CHECK((first_moment(f) - NeoHookean::cauchy_stress<E>(d_neo, x, rubber)).cwiseAbs().maxCoeff() <= tol);
+  // Linear's is the small-strain stress, the force per reference area (its forces are K0 u).
+  Linear::evaluate<E>(d_elem, x, f, nullptr);
+  CHECK((first_moment(f) * F.determinant() - Linear::cauchy_stress<E>(d_elem, x, rubber) * F.transpose()).cwiseAbs().maxCoeff() <= tol);
+}
+
 TEMPLATE_LIST_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress, von Mises of uniaxial stress",
                         "[elastic][stress]", AllElements) {
   using E = TestType;
@@ -483,11 +521,15 @@ TEMPLATE_LIST_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress, von M
     // inverse (~1e-15); stress entries are ~1e3 e.
     const Scalar tol = 1e-12 * (la + 2 * mu) * std::abs(e);
     REQUIRE((Linear::cauchy_stress<E>(d, x, rubber) - expected).cwiseAbs().maxCoeff() <= tol);
-    REQUIRE((CorotationalPerElement::cauchy_stress<E>(d, x, rubber) - expected).cwiseAbs().maxCoeff() <= tol);
+    // The corotational Cauchy stress is the Biot stress T = C(S - I) (Hooke's, as S = F) times
+    // S / J: the lateral entries divided by 1 + e, the axial one unchanged.
+    Mat3 corotated = expected;
+    corotated(1, 1) /= 1 + e, corotated(2, 2) /= 1 + e;
+    REQUIRE((CorotationalPerElement::cauchy_stress<E>(d, x, rubber) - corotated).cwiseAbs().maxCoeff() <= tol);
     // Rotated, the corotational stress rotates with the body: Q sigma Q^T.
     const Mat3 Q = big_rotation();
     const Mat3 sq = CorotationalPerElement::cauchy_stress<E>(d, rigidly_moved<E>(x, Q, Vec3(1, 1, 1)), rubber);
-    REQUIRE((sq - Q * expected * Q.transpose()).cwiseAbs().maxCoeff() <= 10 * tol);
+    REQUIRE((sq - Q * corotated * Q.transpose()).cwiseAbs().maxCoeff() <= 10 * tol);
   }
   // Von Mises: a uniaxial stress s has equivalent stress |s|; pure pressure has 0; pure shear
   // tau has sqrt(3) tau. Closed forms, round-off only.
