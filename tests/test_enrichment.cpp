@@ -539,6 +539,43 @@ TEST_CASE("X-FEM: an enrichment written outside the library composes - the 0/1 s
   }
 }
 
+TEST_CASE("X-FEM: positions() and displacement(node) are the nodes' physical displacements with either enrichment",
+          "[enrichment]") {
+  // Found by review (2026-12-02): with Heaviside enrichment positions() and displacement(node)
+  // gave X + the standard dofs, which are not the nodes' displacements (u_i + H_i a_i are): a
+  // strip pushed down was reported 0.005 up. The independent fact: both enrichments span the
+  // same space, and the shifted one's standard dofs are the nodal displacements.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(BoxSpec{6, 1, 2, Vec3(6, 1, 1)});
+  auto nearest = [&](const Vec3& p) {
+    Index i = 0;
+    (mesh.nodes().colwise() - p).colwise().squaredNorm().minCoeff(&i);
+    return i;
+  };
+  const Index top = nearest(Vec3(6, 1, 1)), bottom = nearest(Vec3(6, 0, 0));
+  auto run = [&](auto tag) {
+    Solver<Hex8, Linear, NoPlasticity, decltype(tag)> s(mesh, Material{1000, 0.3, 1.0});
+    s.fix(mesh.node_set("xmin"));
+    s.cut(CutPlane(Vec3(0, 0.3, 0), Vec3(0, 1, 0)));  // two strips, apart but at the clamp
+    s.add_nodal_force(std::vector<Index>{top}, Vec3(0, 0, -0.05));
+    s.add_nodal_force(std::vector<Index>{bottom}, Vec3(0, 0, 0.03));
+    s.solve_static();
+    const Eigen::Matrix3Xd u = s.nodal_displacements();
+    // (X + u) - X rounds at X's magnitude: an ulp of the largest coordinate per operation.
+    const Scalar ulp = std::numeric_limits<Scalar>::epsilon() * mesh.nodes().cwiseAbs().maxCoeff();
+    CHECK((s.positions() - mesh.nodes() - u).cwiseAbs().maxCoeff() <= 2 * ulp);
+    for (Index i = 0; i < mesh.num_nodes(); ++i) CHECK(s.displacement(i) == Vec3(u.col(i)));
+    return Eigen::Matrix3Xd(s.positions());
+  };
+  const Eigen::Matrix3Xd h = run(Heaviside{}), shifted = run(ShiftedHeaviside{});
+  const Scalar scale = (shifted - mesh.nodes()).cwiseAbs().maxCoeff();
+  INFO("max |x_Heaviside - x_shifted| " << (h - shifted).cwiseAbs().maxCoeff() << " of " << scale);
+  // One linear system in two bases: the direct solver's round-off, amplified by the basis
+  // change's conditioning (the bound used for Heaviside against shifted above).
+  CHECK((h - shifted).cwiseAbs().maxCoeff() <= 1e-9 * scale);
+  CHECK(h(2, top) - mesh.node(top).z() < -0.01);  // the top strip's end went down
+  CHECK(h(2, bottom) - mesh.node(bottom).z() > 0.01);
+}
+
 TEST_CASE("X-FEM: the compressed rule gives the full rule's linear solution, and the nonlinear within its quadrature "
           "error", "[enrichment]") {
   // On the cut beam (box elements: affine geometry) linear elasticity's integrand is in the

@@ -426,13 +426,19 @@ class Enrichment {
   /// u_i + sum_cuts psi(H_i, H_i) a_i (`psi`: the enrichment function, psi(H(x), H_i)).
   template <class Psi>
   Eigen::Matrix3Xd nodal_displacements(const Vector& u, Index num_nodes, Psi psi) const {
-    Eigen::Matrix3Xd x = Eigen::Map<const Eigen::Matrix3Xd>(u.data(), 3, num_nodes);
+    Eigen::Matrix3Xd x(3, num_nodes);
+    for (Index i = 0; i < num_nodes; ++i) x.col(i) = nodal_displacement(u, i, psi);
+    return x;
+  }
+  /// Node i's physical displacement, u_i + sum_cuts psi(H_i, H_i) a_i.
+  template <class Psi>
+  Vec3 nodal_displacement(const Vector& u, Index i, Psi psi) const {
+    Vec3 x = u.template segment<3>(3 * i);
     for (int c = 0; c < num_cuts(); ++c)
-      for (Index i = 0; i < num_nodes; ++i)
-        if (const Index r = row(c, i); r >= 0) {
-          const Scalar h = sign(c, i);
-          x.col(i) += psi(h, h) * u.template segment<3>(3 * r);
-        }
+      if (const Index r = row(c, i); r >= 0) {
+        const Scalar h = sign(c, i);
+        x += psi(h, h) * u.template segment<3>(3 * r);
+      }
     return x;
   }
   /// Adds the enriched dofs' share of a force f at node i to F: f psi(H_i, H_i) on each of its

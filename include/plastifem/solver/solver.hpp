@@ -143,10 +143,10 @@ class Solver {
   const Vector& displacement() const { return current_.u; }
   const Vector& velocity() const { return current_.v; }
   const Vector& acceleration() const { return current_.a; }
-  Vec3 displacement(Index node) const { return current_.u.template segment<3>(3 * mesh().checked_node(node)); }
+  Vec3 displacement(Index node) const;  ///< the node's physical displacement (nodal_displacements)
   /// The committed state (every field a step changes).
   const StateType& state() const { return current_; }
-  /// Current positions x = X + u, one node per column.
+  /// Current positions X + nodal_displacements(), one node per column.
   Eigen::Matrix3Xd positions() const;
   /// Sets u, v and t (refused where the model cannot be evaluated); the acceleration is then
   /// solved from equilibrium at the next step, and the state is balanced with f_int(u) for statics.

@@ -151,7 +151,18 @@ Index Solver<E, Elastic, Plastic, Enrich>::add_dof_slot(Index node) {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::positions() const {
-  return mesh().nodes() + Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
+  return mesh().nodes() + nodal_displacements();
+}
+
+template <FiniteElement E, class Elastic, class Plastic, class Enrich>
+  requires ElasticModel<Elastic, E>
+Vec3 Solver<E, Elastic, Plastic, Enrich>::displacement(Index node) const {
+  const Index i = mesh().checked_node(node);
+  if constexpr (enriched) {
+    if constexpr (!vanishes_at_nodes<Enrich>())
+      return body_.enrichment().nodal_displacement(current_.u, i, &Enrich::psi);
+  }
+  return current_.u.template segment<3>(3 * i);
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
