@@ -494,6 +494,15 @@ TEMPLATE_LIST_TEST_CASE("the reported stress is the force per deformed area: sum
   CHECK((first_moment(f) - CorotationalPerElement::cauchy_stress<E>(d_elem, x, rubber)).cwiseAbs().maxCoeff() <= tol);
   NeoHookean::evaluate<E>(d_neo, x, f, nullptr);
   CHECK((first_moment(f) - NeoHookean::cauchy_stress<E>(d_neo, x, rubber)).cwiseAbs().maxCoeff() <= tol);
+  // Inverted or collapsed (J <= 0): the corotational law is defined there, a force per
+  // deformed area is not; the rotated Biot stress (force per reference area) is reported, finite.
+  for (const Scalar z : {0.0, -0.5}) {
+    const Mat3 Fz = Vec3(1.1, 1.0, z).asDiagonal();
+    ElementNodes<E> xz;
+    for (int a = 0; a < E::num_nodes; ++a) xz.col(a) = Fz * X.col(a);
+    CHECK(Corotational::cauchy_stress<E>(d_point, xz, rubber).allFinite());
+    CHECK(CorotationalPerElement::cauchy_stress<E>(d_elem, xz, rubber).allFinite());
+  }
   // Linear's is the small-strain stress, the force per reference area (its forces are K0 u).
   Linear::evaluate<E>(d_elem, x, f, nullptr);
   CHECK((first_moment(f) * F.determinant() - Linear::cauchy_stress<E>(d_elem, x, rubber) * F.transpose()).cwiseAbs().maxCoeff() <= tol);

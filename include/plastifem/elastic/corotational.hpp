@@ -50,7 +50,9 @@ namespace plastifem {
 /// the force per deformed area. psi(S) = mu |S - I|^2 + lambda/2 tr(S - I)^2 is isotropic, so
 /// T and S are coaxial and T S is symmetric (symmetrised here against round-off). To first
 /// order in the strain it is R T R^T, the rotated linear stress, which at a 10% uniaxial
-/// stretch with nu = 0.3 is 6% below the force per deformed area.
+/// stretch with nu = 0.3 is 6% below the force per deformed area. At an inverted or collapsed
+/// point (J <= 0), where a force per deformed area means nothing but the law is defined, it is
+/// R T R^T, the force per reference area: finite, so output and tearing read a number.
 template <class L = void>  // see Lazy (core/types.hpp)
 Eigen::Matrix<Lazy<L>, 3, 3> corotated_stress(const Material& m, const Mat3& F_) {
   using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
@@ -58,8 +60,11 @@ Eigen::Matrix<Lazy<L>, 3, 3> corotated_stress(const Material& m, const Mat3& F_)
   const M3 R = rotation_of(F);
   const M3 RtF = R.transpose() * F;
   const M3 S = 0.5 * (RtF + RtF.transpose());
-  const M3 TS = hooke<L>(m, S - M3::Identity()) * S;
-  return R * (0.5 * (TS + TS.transpose())) * R.transpose() / F.determinant();
+  const M3 T = hooke<L>(m, S - M3::Identity());
+  const Scalar J = F.determinant();
+  if (!(J > 0)) return R * T * R.transpose();
+  const M3 TS = T * S;
+  return R * (0.5 * (TS + TS.transpose())) * R.transpose() / J;
 }
 
 /// Volumetric::MeanDilatation: the B-bar locking remedy (elastic/small_strain.hpp) in the
