@@ -260,11 +260,12 @@ TEST_CASE("Discretization: element stress under a homogeneous deformation is the
     const Discretization<Hex8, Linear> d(mesh, soft);
     check(d.element_stress(affine(mesh, H, Vec3(0.1, 0.2, 0.3))), hooke_(Hs), "Linear");
   }
-  {  // Corotational: F = R (I + S), S symmetric: sigma = R C(S) R^T.
+  {  // Corotational: F = R U, U = I + S, S symmetric: sigma = R C(S) U R^T / det U (the Biot
+     // stress C(S) times U / J; C(S) and U are coaxial, so the product is symmetric).
     const Discretization<Hex8, Corotational> d(mesh, soft);
-    const Mat3 S = 10 * Hs;
-    check(d.element_stress(affine(mesh, big_rotation * (Mat3::Identity() + S) - Mat3::Identity())),
-          big_rotation * hooke_(S) * big_rotation.transpose(), "Corotational");
+    const Mat3 S = 10 * Hs, U = Mat3::Identity() + S;
+    check(d.element_stress(affine(mesh, big_rotation * U - Mat3::Identity())),
+          big_rotation * hooke_(S) * U * big_rotation.transpose() / U.determinant(), "Corotational");
   }
   {  // NeoHookean: sigma = (mu (F F^T - I) + lambda ln J I) / J.
     const Discretization<Hex8, NeoHookean> d(mesh, soft);
