@@ -422,15 +422,8 @@ class Enrichment {
     return held;
   }
 
-  /// Every node's physical displacement, one per column, from the dofs u:
-  /// u_i + sum_cuts psi(H_i, H_i) a_i (`psi`: the enrichment function, psi(H(x), H_i)).
-  template <class Psi>
-  Eigen::Matrix3Xd nodal_displacements(const Vector& u, Index num_nodes, Psi psi) const {
-    Eigen::Matrix3Xd x(3, num_nodes);
-    for (Index i = 0; i < num_nodes; ++i) x.col(i) = nodal_displacement(u, i, psi);
-    return x;
-  }
-  /// Node i's physical displacement, u_i + sum_cuts psi(H_i, H_i) a_i.
+  /// Node i's physical displacement from the dofs u: u_i + sum_cuts psi(H_i, H_i) a_i (`psi`:
+  /// the enrichment function, psi(H(x), H_i)).
   template <class Psi>
   Vec3 nodal_displacement(const Vector& u, Index i, Psi psi) const {
     Vec3 x = u.template segment<3>(3 * i);
@@ -442,7 +435,7 @@ class Enrichment {
     return x;
   }
   /// Adds the enriched dofs' share of a force f at node i to F: f psi(H_i, H_i) on each of its
-  /// enriched rows, the adjoint of nodal_displacements (the force does work on the node's
+  /// enriched rows, the adjoint of nodal_displacement (the force does work on the node's
   /// physical displacement, on its own side of each cut).
   template <class Psi>
   void add_nodal_force(Index i, const Vec3& f, Psi psi, Vector& F) const {

@@ -125,11 +125,9 @@ void Solver<E, Elastic, Plastic, Enrich>::clear_loads() {
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
   requires ElasticModel<Elastic, E>
 Eigen::Matrix3Xd Solver<E, Elastic, Plastic, Enrich>::nodal_displacements() const {
-  if constexpr (enriched) {
-    if constexpr (!vanishes_at_nodes<Enrich>())
-      return body_.enrichment().nodal_displacements(current_.u, mesh().num_nodes(), &Enrich::psi);
-  }
-  return Eigen::Map<const Eigen::Matrix3Xd>(current_.u.data(), 3, mesh().num_nodes());
+  Eigen::Matrix3Xd x(3, mesh().num_nodes());
+  for (Index i = 0; i < mesh().num_nodes(); ++i) x.col(i) = displacement(i);
+  return x;
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>
