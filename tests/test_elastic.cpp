@@ -508,6 +508,66 @@ TEMPLATE_LIST_TEST_CASE("the reported stress is the force per deformed area: sum
   CHECK((first_moment(f) * F.determinant() - Linear::cauchy_stress<E>(d_elem, x, rubber) * F.transpose()).cwiseAbs().maxCoeff() <= tol);
 }
 
+TEMPLATE_LIST_TEST_CASE("a mean-dilatation model reports the pressure its forces carry, on any element and field",
+                        "[elastic][stress]", AllElements) {
+  // The B-bar volumetric stress kappa trbar is one value per element, trbar = sum_a gbar_a . u_a
+  // the mean dilatation (elastic/small_strain.hpp). For any displacement the forces
+  // f_a = int sigma_bar g_a dV give sum_a f_a X_a^T = int sigma_bar dV (sum_a g_a X_a^T = I),
+  // whose deviatoric part integrates to a traceless matrix: the pressure is
+  // tr(sum_a f_a X_a^T) / 3V, an independent fact the reported stress's trace / 3 must match.
+  // On a non-affine element (the distorted Hex8 and Wedge6) the centre's own dilatation
+  // differs from trbar; on Tet4 and straight-sided Tet10 they coincide.
+  using E = TestType;
+  std::mt19937 rng(7);
+  const ElementNodes<E> X = distorted_element<E>(rng);
+  const Scalar V = element_volume<E>(X);
+  const Material m{1000.0, 0.49, 1.0};  // nearly incompressible: the pressure is kappa times the dilatation
+  std::uniform_real_distribution<Scalar> unit(-1, 1);
+  ElementNodes<E> u;  // a non-homogeneous field of size `amplitude`
+  for (int a = 0; a < E::num_nodes; ++a) u.col(a) = Vec3(unit(rng), unit(rng), unit(rng));
+  auto pressure = [&](const ElementVector<E>& f, const ElementNodes<E>& y) {
+    Scalar t = 0;
+    for (int a = 0; a < E::num_nodes; ++a) t += f.template segment<3>(3 * a).dot(y.col(a));
+    return t / (3 * V);
+  };
+  ElementVector<E> f;
+  {  // Linear: exact, to round-off of the force sums (pressure ~ kappa 1e-3 = 17)
+    const Scalar amplitude = 1e-3;
+    const ElementNodes<E> x = X + amplitude * u;
+    const auto d = LinearMeanDilatation::prepare<E>(X, m);
+    LinearMeanDilatation::evaluate<E>(d, x, f, nullptr);
+    const Scalar p = pressure(f, X);
+    CHECK(std::abs(LinearMeanDilatation::cauchy_stress<E>(d, x, m).trace() / 3 - p) <= 1e-10 * std::abs(p));
+  }
+  {  // Corotational, turned by a large rotation and moved: the forces are R K0 y (y the rotated-
+    // frame displacement), so with x the pressure is tr(sum_a f_a x_a^T) / 3V up to terms of
+    // relative order the strain (1e-6 here: y x^T = y X0^T + y y^T, the Cauchy stress's S / J),
+    // bounded by 1e-4.
+    const Scalar amplitude = 1e-6;
+    const Mat3 Q = big_rotation();
+    ElementNodes<E> x = Q * (X + amplitude * u);
+    x.colwise() += Vec3(0.3, -1, 2);
+    const auto d = CorotationalMeanDilatation::prepare<E>(X, m);
+    CorotationalMeanDilatation::evaluate<E>(d, x, f, nullptr);
+    const Scalar p = pressure(f, x);
+    CHECK(std::abs(CorotationalMeanDilatation::cauchy_stress<E>(d, x, m).trace() / 3 - p) <= 1e-4 * std::abs(p));
+  }
+  {  // Neo-Hookean (Abaqus form: the deviatoric Kirchhoff stress P_dev F^T is traceless) at a
+    // finite strain: sum_a f_a . x_a = 3 V Jbar U'(Jbar) exactly (Jbar is of degree 3 in x), and
+    // the reported pressure is U'(Jbar).
+    const Scalar amplitude = 0.05;
+    const ElementNodes<E> x = big_rotation() * (X + amplitude * u);
+    const auto d = NeoHookeanAbaqusMeanDilatation::prepare<E>(X, m);
+    NeoHookeanAbaqusMeanDilatation::evaluate<E>(d, x, f, nullptr);
+    Scalar Jbar = 0;
+    const auto q = E::template quadrature<E::stiffness_degree>();
+    for (int k = 0; k < q.size; ++k)
+      Jbar += q.weights[k] * jacobian<E>(x, q.points[k]).determinant() / V;
+    const Scalar p = pressure(f, x) / Jbar;
+    CHECK(std::abs(NeoHookeanAbaqusMeanDilatation::cauchy_stress<E>(d, x, m).trace() / 3 - p) <= 1e-10 * m.young);
+  }
+}
+
 TEMPLATE_LIST_TEST_CASE("uniaxial homogeneous strain gives Hooke's stress, von Mises of uniaxial stress",
                         "[elastic][stress]", AllElements) {
   using E = TestType;

@@ -53,14 +53,19 @@ namespace plastifem {
 /// stretch with nu = 0.3 is 6% below the force per deformed area. At an inverted or collapsed
 /// point (J <= 0), where a force per deformed area means nothing but the law is defined, it is
 /// R T R^T, the force per reference area: finite, so output and tearing read a number.
+/// Given the element's mean gradient Fbar (the MeanDilatation variants), the strain's trace is
+/// the mean dilatation tr(R^T Fbar) - 3 their volumetric force uses:
+/// T = 2 mu dev(S - I) + kappa (tr(R^T Fbar) - 3) I, still coaxial with S.
 template <class L = void>  // see Lazy (core/types.hpp)
-Eigen::Matrix<Lazy<L>, 3, 3> corotated_stress(const Material& m, const Mat3& F_) {
+Eigen::Matrix<Lazy<L>, 3, 3> corotated_stress(const Material& m, const Mat3& F_, const Mat3* Fbar = nullptr) {
   using M3 = Eigen::Matrix<Lazy<L>, 3, 3>;
   const M3& F = F_;
   const M3 R = rotation_of(F);
   const M3 RtF = R.transpose() * F;
   const M3 S = 0.5 * (RtF + RtF.transpose());
-  const M3 T = hooke<L>(m, S - M3::Identity());
+  M3 strain = S - M3::Identity();
+  if (Fbar) strain.diagonal().array() += ((R.transpose() * *Fbar).trace() - S.trace()) / 3;
+  const M3 T = hooke<L>(m, strain);
   const Scalar J = F.determinant();
   if (!(J > 0)) return R * T * R.transpose();
   const M3 TS = T * S;
@@ -130,10 +135,16 @@ struct CorotationalPerElementT {
     return detail::small_strain_points<E>(law, V == Volumetric::MeanDilatation, ps, x, R, f, K);
   }
 
-  /// Cauchy stress at the element centre: corotated_stress of the centre's F.
+  /// Cauchy stress at the element centre: corotated_stress of the centre's F (with
+  /// MeanDilatation, and the element's mean F for the dilatation its forces use).
   template <FiniteElement E>
   static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
-    return corotated_stress(m, x * d.G_centre);
+    const Mat3 F = x * d.G_centre;
+    if constexpr (V == Volumetric::MeanDilatation) {
+      const Mat3 Fbar = relative_to_first_node<E>(x) * mean_shape_gradient<E>(d.X0);
+      return corotated_stress(m, F, &Fbar);
+    }
+    return corotated_stress(m, F);
   }
 };
 

@@ -49,11 +49,17 @@ struct LinearElastic {
     return detail::small_strain_points<E>(law, V == Volumetric::MeanDilatation, ps, x, Mat3::Identity(), f, K);
   }
 
-  /// Cauchy stress at the element centre: sigma = C sym(grad u).
+  /// Cauchy stress at the element centre: sigma = C sym(grad u); with MeanDilatation the
+  /// strain's trace is the element's mean dilatation tr(u gbar), the one its forces use (the
+  /// centre's own trace differs on a non-affine element, times kappa near nu = 0.5).
   template <FiniteElement E>
   static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
-    const Mat3 H = (relative_to_first_node<E>(x) - d.X0) * d.G_centre;
-    return hooke(m, 0.5 * (H + H.transpose()));
+    const ElementNodes<E> u = relative_to_first_node<E>(x) - d.X0;
+    const Mat3 H = u * d.G_centre;
+    Mat3 eps = 0.5 * (H + H.transpose());
+    if constexpr (V == Volumetric::MeanDilatation)
+      eps.diagonal().array() += ((u * mean_shape_gradient<E>(d.X0)).trace() - eps.trace()) / 3;
+    return hooke(m, eps);
   }
 };
 

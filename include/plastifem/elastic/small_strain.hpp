@@ -101,6 +101,24 @@ SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Materia
   return d;
 }
 
+/// gbar = (1/V) sum_q dv_q dN/dX_q over the stiffness rule of rest shape X0: the element-mean
+/// shape gradient, whose trace of (x - X0) gbar is the mean dilatation the MeanDilatation
+/// variants' volumetric force uses (prepare_small_strain forms the same sum inside its own
+/// loop). Fixed-size: the stress output calls it for every element, the tearing check too.
+template <FiniteElement E>
+ShapeGradients<E> mean_shape_gradient(const ElementNodes<E>& X0) {
+  const auto q = E::template quadrature<E::stiffness_degree>();
+  ShapeGradients<E> Gbar = ShapeGradients<E>::Zero();
+  Scalar V = 0;
+  for (int k = 0; k < q.size; ++k) {
+    Scalar det_J;
+    const ShapeGradients<E> G = physical_gradient_at<E>(X0, quadrature_gradients<E, E::stiffness_degree>()[k], &det_J);
+    Gbar += (q.weights[k] * det_J) * G;
+    V += q.weights[k] * det_J;
+  }
+  return Gbar / V;
+}
+
 /// Per-point data of the full-integration (stiffness) rule, for models evaluated point by
 /// point (the hyperelastic family): dN/dX and w_q det J_q at each point.
 template <FiniteElement E>
