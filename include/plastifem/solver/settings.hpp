@@ -113,7 +113,11 @@ struct StepReport {
   int newton_iterations = 0;
   int linear_iterations = 0;     ///< summed over Newton iterations
   Scalar residual = 0;           ///< |r| over free dofs at the committed state (real time: after its one solve)
-  Scalar relative_residual = 0;  ///< residual / force scale
+  /// residual / the force scale Newton held it to (NewtonOptions::running_max_scale): in
+  /// dynamics the largest balance term over the step's iterations, in statics the larger of the
+  /// initial imbalance's and the last iterate's; not the committed state's own largest force,
+  /// which may be several times smaller
+  Scalar relative_residual = 0;
   Convergence convergence = Convergence::Converged;
   bool stagnated = false;        ///< a (sub-)step was accepted on stagnation, not on the tolerance
   bool linear_converged = true;  ///< every linear solve reached its tolerance (false: CG stopped at its cap)
