@@ -339,6 +339,34 @@ TEMPLATE_TEST_CASE("restore: thresholds hardened past every finite stress stay f
   CHECK((s.displacement() - u).allFinite());
 }
 
+TEMPLATE_TEST_CASE("restore: a yield value of +inf (no flow) is a threshold, so the state restores",
+                   "[state][restore][plasticity]", VertexBlended, CellCentered) {
+  // Found by review (2026-12-02): PlasticParams documents +inf as the yield value of no flow, the
+  // table's thresholds start at it, and restore() refused the solver's own state as "not
+  // finite". Thresholds may be +inf; NaN and negative ones are still refused.
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
+  PlasticParams p;
+  p.yield_stress = std::numeric_limits<Scalar>::infinity();
+  p.rotation_flow_rate = 0.5, p.rotation_yield = 0.01;  // only plastic rotation flows
+  Solver<Hex8, Corotational, TestType> s(mesh, soft, {}, p);
+  s.fix(mesh.node_set("xmin"));
+  s.add_gravity(Vec3(0, 0, -9.81));
+  const auto saved = s.state();
+  s.step(0.01);
+  const auto after = s.state();
+  const Vector u = s.displacement();
+  s.restore(saved);
+  CHECK(s.state() == saved);
+  s.step(0.01);
+  CHECK(s.displacement() == u);  // the same step again, bit for bit
+  CHECK(s.state().plastic.tau == after.plastic.tau);
+  auto bad = saved;
+  bad.plastic.tau[3] = -1;
+  CHECK_THROWS_AS(s.restore(bad), InvalidArgument);
+  bad.plastic.tau[3] = std::numeric_limits<Scalar>::quiet_NaN();
+  CHECK_THROWS_AS(s.restore(bad), InvalidArgument);
+}
+
 TEST_CASE("restore: another solver's state of the same sizes is refused, a moved solver's is taken",
           "[state][restore][plasticity]") {
   // Found by review (2026-12-01). Sizes were all restore() compared: a state of another solver

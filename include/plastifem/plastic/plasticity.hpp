@@ -86,8 +86,10 @@ class Plasticity {
   }
 
   /// Refuses (InvalidArgument) a table this engine did not make for this mesh: entries per
-  /// element of another policy (VertexBlended and CellCentered share the table's type), or
-  /// values that are not finite. Solver::restore asks before it installs a state's table.
+  /// element of another policy (VertexBlended and CellCentered share the table's type), values
+  /// that are not finite, or thresholds that are negative or NaN (+inf is a threshold: the
+  /// yield value that switches a flow off, PlasticParams). Solver::restore asks before it
+  /// installs a state's table.
   void check_table(const PlasticTable& t) const {
     const size_t ne = V0_.size(), np = ne * P, nr = ne * NR;
     if (t.tau.size() != np || !(t.tau_R.empty() || t.tau_R.size() == nr) || t.rotation.size() != 3 * t.tau_R.size() ||
@@ -97,9 +99,10 @@ class Plasticity {
                             "(a state of another plastic policy?)",
                             t.tau.size(), t.tau_R.size(), t.volume.size(), ne, P, NR);
     auto finite = [](const auto& v) { return std::all_of(v.begin(), v.end(), [](Scalar x) { return std::isfinite(x); }); };
-    if (!t.rest.allFinite() || !finite(t.tau) || !finite(t.alpha) || !finite(t.tau_R) || !finite(t.rotation) ||
+    auto thresholds = [](const auto& v) { return std::all_of(v.begin(), v.end(), [](Scalar x) { return x >= 0; }); };
+    if (!t.rest.allFinite() || !thresholds(t.tau) || !finite(t.alpha) || !thresholds(t.tau_R) || !finite(t.rotation) ||
         !finite(t.volume))
-      fail<InvalidArgument>("restore: the state's plastic table has values that are not finite");
+      fail<InvalidArgument>("restore: the state's plastic table has values that are not finite (or negative thresholds)");
   }
 
   /// The assembler's pattern changed (the dof map grew, a cut froze elements): the fusion is
