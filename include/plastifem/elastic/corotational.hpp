@@ -82,11 +82,11 @@ struct CorotationalPerElementT {
   static constexpr bool defined_when_inverted = true;  ///< an inverted element reads as compressed through zero
 
   template <FiniteElement E>
-  using ElementData = SmallStrainData<E>;
+  using ElementData = SmallStrainDataOf<E, V>;
 
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
-    return prepare_small_strain<E>(X0, m, V);
+    return prepare_small_strain_data<E, V>(X0, m);
   }
 
   template <FiniteElement E>
@@ -141,7 +141,7 @@ struct CorotationalPerElementT {
   static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
     const Mat3 F = x * d.G_centre;
     if constexpr (V == Volumetric::MeanDilatation) {
-      const Mat3 Fbar = relative_to_first_node<E>(x) * mean_shape_gradient<E>(d.X0);
+      const Mat3 Fbar = relative_to_first_node<E>(x) * d.G_mean;
       return corotated_stress(m, F, &Fbar);
     }
     return corotated_stress(m, F);

@@ -14,11 +14,11 @@ struct LinearElastic {
   static constexpr bool defined_when_inverted = true;
 
   template <FiniteElement E>
-  using ElementData = SmallStrainData<E>;
+  using ElementData = SmallStrainDataOf<E, V>;
 
   template <FiniteElement E>
   static ElementData<E> prepare(const ElementNodes<E>& X0, const Material& m) {
-    return prepare_small_strain<E>(X0, m, V);
+    return prepare_small_strain_data<E, V>(X0, m);
   }
 
   /// Internal force f and (optionally) tangent K at current positions x; returns strain energy.
@@ -58,7 +58,7 @@ struct LinearElastic {
     const Mat3 H = u * d.G_centre;
     Mat3 eps = 0.5 * (H + H.transpose());
     if constexpr (V == Volumetric::MeanDilatation)
-      eps.diagonal().array() += ((u * mean_shape_gradient<E>(d.X0)).trace() - eps.trace()) / 3;
+      eps.diagonal().array() += ((u * d.G_mean).trace() - eps.trace()) / 3;
     return hooke(m, eps);
   }
 };

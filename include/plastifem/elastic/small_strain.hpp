@@ -53,9 +53,21 @@ struct SmallStrainData {
 /// How the volumetric part of the small-strain stiffness is integrated.
 enum class Volumetric { Full, MeanDilatation };
 
+/// The mean-dilatation variants' data also keep the element-mean gradient gbar, whose
+/// tr((x - X0) gbar) is the dilatation their volumetric force and reported stress use (the
+/// centre's own differs on a non-affine element).
+template <FiniteElement E>
+struct MeanDilatationData : SmallStrainData<E> {
+  ShapeGradients<E> G_mean;  ///< gbar = (1/V) sum_q dv_q dN/dX_q
+};
+template <FiniteElement E, Volumetric V>
+using SmallStrainDataOf = std::conditional_t<V == Volumetric::MeanDilatation, MeanDilatationData<E>, SmallStrainData<E>>;
+
+/// `mean_gradient`: receives gbar (formed with the mean-dilatation stiffness, or for it).
 template <FiniteElement E>
 SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Material& m,
-                                        Volumetric volumetric = Volumetric::Full) {
+                                        Volumetric volumetric = Volumetric::Full,
+                                        ShapeGradients<E>* mean_gradient = nullptr) {
   SmallStrainData<E> d;
   d.X0 = X0.colwise() - X0.col(0);
   d.K0.setZero();
@@ -90,8 +102,9 @@ SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Materia
       d.K0.template block<3, 3>(3 * a, 3 * b) = block;
       if (a != b) d.K0.template block<3, 3>(3 * b, 3 * a) = block.transpose();
     }
+  Gbar /= V;
+  if (mean_gradient) *mean_gradient = Gbar;
   if (mean) {
-    Gbar /= V;
     const Scalar kappa = m.lambda() + 2 * m.mu() / 3;
     for (int a = 0; a < E::num_nodes; ++a)
       for (int b = 0; b < E::num_nodes; ++b)
@@ -101,22 +114,16 @@ SmallStrainData<E> prepare_small_strain(const ElementNodes<E>& X0, const Materia
   return d;
 }
 
-/// gbar = (1/V) sum_q dv_q dN/dX_q over the stiffness rule of rest shape X0: the element-mean
-/// shape gradient, whose trace of (x - X0) gbar is the mean dilatation the MeanDilatation
-/// variants' volumetric force uses (prepare_small_strain forms the same sum inside its own
-/// loop). Fixed-size: the stress output calls it for every element, the tearing check too.
-template <FiniteElement E>
-ShapeGradients<E> mean_shape_gradient(const ElementNodes<E>& X0) {
-  const auto q = E::template quadrature<E::stiffness_degree>();
-  ShapeGradients<E> Gbar = ShapeGradients<E>::Zero();
-  Scalar V = 0;
-  for (int k = 0; k < q.size; ++k) {
-    Scalar det_J;
-    const ShapeGradients<E> G = physical_gradient_at<E>(X0, quadrature_gradients<E, E::stiffness_degree>()[k], &det_J);
-    Gbar += (q.weights[k] * det_J) * G;
-    V += q.weights[k] * det_J;
+/// The data of a small-strain model with volumetric integration V.
+template <FiniteElement E, Volumetric V>
+SmallStrainDataOf<E, V> prepare_small_strain_data(const ElementNodes<E>& X0, const Material& m) {
+  if constexpr (V == Volumetric::MeanDilatation) {
+    MeanDilatationData<E> d;
+    static_cast<SmallStrainData<E>&>(d) = prepare_small_strain<E>(X0, m, V, &d.G_mean);
+    return d;
+  } else {
+    return prepare_small_strain<E>(X0, m, V);
   }
-  return Gbar / V;
 }
 
 /// Per-point data of the full-integration (stiffness) rule, for models evaluated point by
