@@ -51,7 +51,10 @@ Scalar external_work_potential(const Loads& loads, Scalar t, const Vector& u) {
 /// seed 000) and the reactions carry that change's imbalance (0.1% of the total on a clamped
 /// bar in which 590 points yielded in one step); with generalized-alpha the free dofs balance at
 /// the weighted instant, not at t_{n+1}, and the reactions miss their imbalance there (0.5-2%
-/// on a damped bar at rho_inf = 0.8).
+/// on a damped bar at rho_inf = 0.8). A state whose acceleration balances nothing yet (before the
+/// first step, or after the loads, constraints or inertia settings changed: MotionState::balance)
+/// is taken with the acceleration it holds, which the next step replaces by equilibrium's; with
+/// the consistent mass its inertia coupling M_cf a_f is then missing from the reactions.
 template <FiniteElement E, class Elastic, bool Enriched, class State>
 Vector reaction_forces(const Discretization<E, Elastic, Enriched>& body, const System<E, Elastic, Enriched>& system,
                        const Loads<E>& loads, const SolverSettings& settings, const State& s, int threads) {
