@@ -112,6 +112,7 @@ TEST_CASE("tetrahedron rules are exact to their degree and not above", "[quadrat
   check_tet_rule(tet_rule_1());
   check_tet_rule(tet_rule_4());
   check_tet_rule(tet_rule_14());
+  check_tet_rule(tet_rule_24());
 }
 
 TEST_CASE("hexahedron Gauss rules are exact to their degree and not above", "[quadrature]") {
