@@ -43,14 +43,11 @@ std::pair<plastifem::Scalar, plastifem::Scalar> free_piece_centre(const S& s, pl
   return {m, mz / m};
 }
 
-/// The momentum along d of the piece x > xc of a bar cut through by one cut (its first): r_d^T M v
-/// with r_d the piece's rigid translation along d in the dofs (a node's enriched dof takes the
-/// value that makes its field 1 on the free side and 0 on the other). With the body held on the
-/// other piece only, it grows by exactly F dt per step under a force F on the free piece
-/// (f_int does no work on a rigid translation of a piece, r_d is zero where the body is held,
-/// and Newmark's update keeps r^T M v - t r^T f_ext), to the solves' residuals.
-template <class S>
-plastifem::Scalar free_piece_momentum(const S& s, plastifem::Scalar xc, int d) {
+/// The rigid translation along d of the piece on which `on_free` holds, in the dofs of a body cut
+/// through by one cut (its first): a node's enriched dof takes the value that makes its field 1
+/// on the free side and 0 on the other.
+template <class S, class OnFree>
+plastifem::Vector free_piece_translation(const S& s, const OnFree& on_free, int d) {
   using namespace plastifem;
   using Enrich = typename S::EnrichmentPolicy;
   const auto& mesh = s.mesh();
@@ -62,8 +59,19 @@ plastifem::Scalar free_piece_momentum(const S& s, plastifem::Scalar xc, int d) {
       r[3 * row + d] = 1 / (free - held);
       r[3 * i + d] = -held / (free - held);
     } else {
-      r[3 * i + d] = mesh.node(i).x() > xc;
+      r[3 * i + d] = on_free(Vec3(mesh.node(i)));
     }
   }
+  return r;
+}
+
+/// The momentum along d of the piece x > xc of a bar cut through by one cut: r_d^T M v with r_d
+/// its rigid translation (free_piece_translation). With the body held on the other piece only,
+/// it grows by exactly F dt per step under a force F on the free piece (f_int does no work on a
+/// rigid translation of a piece, r_d is zero where the body is held, and Newmark's update keeps
+/// r^T M v - t r^T f_ext), to the solves' residuals.
+template <class S>
+plastifem::Scalar free_piece_momentum(const S& s, plastifem::Scalar xc, int d) {
+  const auto r = free_piece_translation(s, [xc](const plastifem::Vec3& X) { return X.x() > xc; }, d);
   return r.dot(s.mass_matrix() * s.velocity());
 }

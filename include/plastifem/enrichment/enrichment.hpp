@@ -472,11 +472,11 @@ class Enrichment {
     DofMap dofs;
   };
 
-  /// The degree of the pieces' mass rule: the element's mass integrand degree on a piece, capped
-  /// at the tabulated tetrahedron rules' 5 (exact on affine elements but for Hex8's enriched
-  /// dofs: degree 6 needed, 5 used; docs/xfem.md).
-  static constexpr int mass_degree = std::min(E::piece_mass_degree, 5);
-  static ReferencePoints mass_points(const std::vector<ReferenceTet>& p) { return piece_quadrature<mass_degree>(p); }
+  /// The pieces' mass rule: of the element's mass integrand degree on a piece (exact on affine
+  /// elements; docs/xfem.md).
+  static ReferencePoints mass_points(const std::vector<ReferenceTet>& p) {
+    return piece_quadrature<E::piece_mass_degree>(p);
+  }
   /// A side's stiffness rule: the pieces' rules, compressed (CutOptions::compress_quadrature) to
   /// at most as many points as the integrand of linear elasticity has polynomials, with the same
   /// integrals of them (subdivision.hpp, compress_rule; kept whole if compression fails).

@@ -33,9 +33,7 @@
 // Exactness: on each piece the rule integrates polynomials of its degree in reference
 // coordinates exactly. The solver asks for the degrees of linear elasticity's integrands
 // (the element traits' piece_*_degree): Tet4 stiffness 1 and mass 2, Tet10 and Wedge6 2 and 4,
-// Hex8 4 and 5 (the
-// Hex8 mass integrand has degree 6 on a parallelepiped; the rules are tabulated to degree 5: a
-// relative error of ~1e-4 in the masses of the cut element's enriched dofs). The stiffness rule
+// Hex8 4 and 6 (its mass integrand N_a N_b det J on a parallelepiped). The stiffness rule
 // of each side is then compressed (compress_rule below; CutOptions::compress_quadrature) to at
 // most as many points as the integrand's polynomial space has members, with the same integrals
 // of them: the same stiffness on an affine element, a tenth of the points on a cut Hex8.
