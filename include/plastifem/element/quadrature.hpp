@@ -57,6 +57,16 @@ Quadrature<n * n * n> hex_gauss() {
   return q;
 }
 
+namespace detail {
+/// Appends the four points with barycentric coordinates (a, a, a, 1 - 3a) and their
+/// permutations, each of weight w, at q's entry k onwards.
+template <int N>
+void add_vertex_orbit(Quadrature<N>& q, int& k, Scalar a, Scalar w) {
+  const Scalar b = 1.0 - 3.0 * a;
+  for (const Vec3& p : {Vec3(a, a, a), Vec3(b, a, a), Vec3(a, b, a), Vec3(a, a, b)}) q.points[k] = p, q.weights[k++] = w;
+}
+}  // namespace detail
+
 /// Midpoint rule on the reference tetrahedron: degree 1.
 inline Quadrature<1> tet_rule_1() {
   return {{Vec3(0.25, 0.25, 0.25)}, {1.0 / 6.0}, 1};
@@ -76,16 +86,8 @@ inline Quadrature<14> tet_rule_14() {
   Quadrature<14> q{};
   int k = 0;
   // Class 1 and 2: barycentric (a, a, a, 1 - 3a), four permutations each.
-  auto orbit4 = [&](Scalar a, Scalar w) {
-    const Scalar b = 1.0 - 3.0 * a;
-    const Vec3 pts[4] = {Vec3(a, a, a), Vec3(b, a, a), Vec3(a, b, a), Vec3(a, a, b)};
-    for (const auto& p : pts) {
-      q.points[k] = p;
-      q.weights[k++] = w;
-    }
-  };
-  orbit4(0.31088591926330060980, 0.018781320953002641800);
-  orbit4(0.092735250310891226402, 0.012248840519393658257);
+  detail::add_vertex_orbit(q, k, 0.31088591926330060980, 0.018781320953002641800);
+  detail::add_vertex_orbit(q, k, 0.092735250310891226402, 0.012248840519393658257);
   // Class 3: barycentric (a, a, b, b) with b = 1/2 - a, six permutations.
   const Scalar a = 0.045503704125649649492, b = 0.5 - a;
   const Scalar w = (1.0 / 6.0 - 4.0 * (0.018781320953002641800 + 0.012248840519393658257)) / 6.0;
@@ -106,14 +108,10 @@ inline Quadrature<14> tet_rule_14() {
 inline Quadrature<24> tet_rule_24() {
   Quadrature<24> q{};
   int k = 0;
-  auto orbit4 = [&](Scalar a, Scalar w) {
-    const Scalar b = 1.0 - 3.0 * a;
-    const Vec3 pts[4] = {Vec3(a, a, a), Vec3(b, a, a), Vec3(a, b, a), Vec3(a, a, b)};
-    for (const auto& p : pts) q.points[k] = p, q.weights[k++] = w / 6;
-  };
-  orbit4(0.2146028712591520292888392, 0.03992275025816749209969063);
-  orbit4(0.04067395853461135311557945, 0.01007721105532064294801324);
-  orbit4(0.3223378901422755103439945, 0.05535718154365472209515328);
+  // Keast's weights sum to 1: divided by 6, the reference volume.
+  detail::add_vertex_orbit(q, k, 0.2146028712591520292888392, 0.03992275025816749209969063 / 6);
+  detail::add_vertex_orbit(q, k, 0.04067395853461135311557945, 0.01007721105532064294801324 / 6);
+  detail::add_vertex_orbit(q, k, 0.3223378901422755103439945, 0.05535718154365472209515328 / 6);
   // Barycentric (a, a, b, c), c = 1 - 2a - b: its twelve distinct permutations, weight 27/560.
   const Scalar a = 0.06366100187501752529923553, b = 0.2696723314583158080340978, c = 1 - 2 * a - b;
   const Scalar l[4] = {a, a, b, c};
