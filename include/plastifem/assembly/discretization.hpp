@@ -283,11 +283,16 @@ class Discretization {
   }
   /// Cauchy stress of element e at its centre; in an enriched element, of side s (its nodes
   /// moved by side s's field x + sum psi^s a: a blending element's one side, a cut element's
-  /// piece s). The standard dofs alone are not the field there (Heaviside enrichment).
+  /// piece s, whose element-mean terms are the piece's, as in its forces). The standard dofs
+  /// alone are not the field there (Heaviside enrichment).
   Mat3 stress(Index e, const Vector& u, int side = 0) const {
     ElementNodes<E> x = current_nodes(e, u);
     if constexpr (Enriched)
-      if (const auto* c = enrichment_.element(e)) x = c->side_nodes(x, u, side);
+      if (const auto* c = enrichment_.element(e)) {
+        x = c->side_nodes(x, u, side);
+        if (c->num_sides == 2 && c->has_material(side))
+          return Elastic::template cauchy_stress<E>(data_[e], x, material(), &c->stiffness[side]);
+      }
     return Elastic::template cauchy_stress<E>(data_[e], x, material());
   }
   /// Cauchy stress per element at its centre (a cut element's: side 0's, the side the level

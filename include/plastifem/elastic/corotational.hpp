@@ -136,12 +136,14 @@ struct CorotationalPerElementT {
   }
 
   /// Cauchy stress at the element centre: corotated_stress of the centre's F (with
-  /// MeanDilatation, and the element's mean F for the dilatation its forces use).
+  /// MeanDilatation, and the element's mean F for the dilatation its forces use: a cut
+  /// element's `piece`'s mean F, given one).
   template <FiniteElement E>
-  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
+  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m,
+                            const PointSet<E>* piece = nullptr) {
     const Mat3 F = x * d.G_centre;
     if constexpr (V == Volumetric::MeanDilatation) {
-      const Mat3 Fbar = relative_to_first_node<E>(x) * d.G_mean;
+      const Mat3 Fbar = relative_to_first_node<E>(x) * (piece ? piece->mean_gradient() : d.G_mean);
       return corotated_stress(m, F, &Fbar);
     }
     return corotated_stress(m, F);
@@ -326,9 +328,11 @@ struct Corotational {
     return W;
   }
 
-  /// Cauchy stress at the element centre: corotated_stress of the centre's F.
+  /// Cauchy stress at the element centre: corotated_stress of the centre's F (no element mean,
+  /// so a cut element's piece changes nothing).
   template <FiniteElement E>
-  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
+  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m,
+                            const PointSet<E>* = nullptr) {
     return corotated_stress(m, x * d.G_centre);
   }
 

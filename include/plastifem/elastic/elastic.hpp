@@ -27,6 +27,8 @@ concept ElasticModel =
       { M::template evaluate<E>(data, x, f, K, kind, lower) } -> std::same_as<Scalar>;
       { M::template evaluate<E>(data, x, f, K) } -> std::same_as<Scalar>;
       { M::template cauchy_stress<E>(data, x, m) } -> std::same_as<Mat3>;
+      // A cut element's piece's stress: an element-mean term (MeanDilatation) over its points.
+      { M::template cauchy_stress<E>(data, x, m, &points) } -> std::same_as<Mat3>;
       // The point-wise interface (elastic/point_law.hpp): a point law built from the material,
       // and the element integral over any point set (a cut element's pieces).
       typename M::Law;

@@ -406,14 +406,18 @@ struct Hyperelastic {
   /// Cauchy stress at the element centre: sigma = P F^T / J, P = P_dev(F) + U'(J) cof F with the
   /// centre's J, or with MeanDilatation the element's Jbar (the pressure U'(Jbar) its forces
   /// use: the centre's J carries the locked pressure the variant removes; a nearly
-  /// incompressible cantilever's element showed +1036 for the model's -92).
+  /// incompressible cantilever's element showed +1036 for the model's -92). Given a cut
+  /// element's `piece`, Jbar is the piece's, as its forces take it.
   template <FiniteElement E>
-  static M3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material&) {
+  static M3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material&,
+                          const PointSet<E>* piece = nullptr) {
     const M3 F = x * d.G_centre;
     Scalar psi, U, dU, ddU;
     M3 P;
     Scalar J = F.determinant();
-    if constexpr (V == Volumetric::MeanDilatation) J = mean_dilatation<E>(d.points.G, d.points.dv, d.volume, x);
+    if constexpr (V == Volumetric::MeanDilatation)
+      J = piece ? mean_dilatation<E>(piece->G, piece->dv, piece->volume(), x)
+                : mean_dilatation<E>(d.points.G, d.points.dv, d.volume, x);
     if (!d.energy.deviatoric(F, psi, P, nullptr) || !d.energy.volumetric(J, U, dU, ddU))
       return M3::Constant(std::numeric_limits<Scalar>::quiet_NaN());
     P += dU * detail::cofactor(F);

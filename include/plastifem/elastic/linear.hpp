@@ -51,14 +51,16 @@ struct LinearElastic {
 
   /// Cauchy stress at the element centre: sigma = C sym(grad u); with MeanDilatation the
   /// strain's trace is the element's mean dilatation tr(u gbar), the one its forces use (the
-  /// centre's own trace differs on a non-affine element, times kappa near nu = 0.5).
+  /// centre's own trace differs on a non-affine element, times kappa near nu = 0.5); given a
+  /// cut element's `piece`, the piece's mean dilatation, as its forces take it.
   template <FiniteElement E>
-  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m) {
+  static Mat3 cauchy_stress(const ElementData<E>& d, const ElementNodes<E>& x, const Material& m,
+                            const PointSet<E>* piece = nullptr) {
     const ElementNodes<E> u = relative_to_first_node<E>(x) - d.X0;
     const Mat3 H = u * d.G_centre;
     Mat3 eps = 0.5 * (H + H.transpose());
     if constexpr (V == Volumetric::MeanDilatation)
-      eps.diagonal().array() += ((u * d.G_mean).trace() - eps.trace()) / 3;
+      eps.diagonal().array() += ((u * (piece ? piece->mean_gradient() : d.G_mean)).trace() - eps.trace()) / 3;
     return hooke(m, eps);
   }
 };
