@@ -192,28 +192,33 @@ class Discretization {
     return w;
   }
 
-  /// The enriched part of the mass matrix (the standard part is assemble_mass's): added into M
-  /// (assembly/mass.hpp's pattern for this dof map).
+  /// The enriched elements' share of the mass matrix beyond the standard assembly's
+  /// (assemble_mass: each element's own), added into M (assembly/mass.hpp's pattern for this dof
+  /// map; enrichment/cut_element.hpp).
   void add_enriched_mass(BlockSymmetricMatrix& M, MassKind kind) const
     requires Enriched
   {
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const Index e = enrichment_.element_of(k);
       const Scalar rho = material().density * mesh_.weight(e);
-      const Eigen::Matrix<Scalar, N, 1> lumped = element_mass<E>(mesh_.element_nodes(e), rho, MassKind::Lumped).diagonal();
-      assembler_.add_extended_matrix(e, enrichment_.elements()[k].enriched_mass(rho, kind, lumped),
-                                     M.values());
+      assembler_.add_extended_matrix(
+          e, enrichment_.elements()[k].enriched_mass(rho, kind, element_mass<E>(mesh_.element_nodes(e), rho, kind)),
+          M.values());
     }
   }
-  /// The enriched dofs' share of a body force per unit mass g (enrichment/cut_element.hpp),
-  /// added into F.
+  /// The enriched elements' share of a body force per unit mass g beyond the standard load's
+  /// (body_force_load; enrichment/cut_element.hpp), added into F.
   void add_enriched_body_force(const Vec3& g, MassKind kind, Vector& F) const
     requires Enriched
   {
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const CutElement<E>& c = enrichment_.elements()[k];
-      const auto f = c.enriched_body_force(material().density * mesh_.weight(enrichment_.element_of(k)), g, kind);
-      for (size_t j = 0; j < f.size(); ++j) F.template segment<3>(3 * c.enriched[j].row) += f[j];
+      const Index e = enrichment_.element_of(k);
+      const Scalar rho = material().density * mesh_.weight(e);
+      const auto f = c.body_force(rho, g, kind, element_mass<E>(mesh_.element_nodes(e), rho, kind));
+      for (int a = 0; a < N; ++a) F.template segment<3>(3 * mesh_.element(e)[a]) += f.template segment<3>(3 * a);
+      for (size_t j = 0; j < c.enriched.size(); ++j)
+        F.template segment<3>(3 * c.enriched[j].row) += f.template segment<3>(3 * (N + static_cast<int>(j)));
     }
   }
   /// The enriched dofs' share of a traction t on a face (enrichment/cut_element.hpp), added

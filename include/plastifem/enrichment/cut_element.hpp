@@ -130,10 +130,17 @@ struct CutElement {
     return W;
   }
 
-  /// The enriched part of the consistent mass (span matrix; the standard block, the element's
-  /// own mass, is left zero: the standard assembly has it), or the X-FEM lumped one (eq. 81-82)
-  /// given the element's lumped standard diagonal.
-  SpanMatrix enriched_mass(Scalar density, MassKind kind, const Eigen::Matrix<Scalar, N, 1>& lumped_diagonal) const {
+  /// The mass's share beyond the standard assembly's (span matrix), given `own`, the element's
+  /// own mass of that kind as the standard assembly has it (element_mass). Lumped: the X-FEM
+  /// lumped enriched diagonal (eq. 81-82), from own's diagonal. Consistent: every block from the
+  /// sides' rules, m^s = rho sum_q N N^T dv_q, the standard one too in a cut element: its u-u
+  /// block gets sum_s m^s - own, replacing the element's own rule. On a non-affine element the
+  /// two rules differ (1e-4 of the mass on distorted Hex8 and Wedge6, 3e-3 on curved Tet10), and
+  /// with Heaviside enrichment a node's fields on a small side are u +- a, whose masses the rules
+  /// must cancel: mixed, the element's mass was indefinite (-1.4e-5 of its scale on Hex8, -4e-4
+  /// on Tet10) and the next step could not be solved (review). From one rule of positive
+  /// weights it is a Gram matrix: semi-definite.
+  SpanMatrix enriched_mass(Scalar density, MassKind kind, const ElementScalarMatrix<E>& own) const {
     const int S = span();
     SpanMatrix M = SpanMatrix::Zero(3 * S, 3 * S);
     const int n = static_cast<int>(enriched.size());
@@ -143,16 +150,15 @@ struct CutElement {
         const EnrichedDof& d = enriched[k];
         Scalar share = 0;
         for (int s = 0; s < num_sides; ++s) share += (num_sides == 1 ? 1 : volume[s] / V) * d.psi[s] * d.psi[s];
-        M.template block<3, 3>(3 * (N + k), 3 * (N + k)) = share * lumped_diagonal[d.node] * Mat3::Identity();
+        M.template block<3, 3>(3 * (N + k), 3 * (N + k)) = share * own(d.node, d.node) * Mat3::Identity();
       }
       return M;
     }
     for (int s = 0; s < num_sides; ++s) {
-      Eigen::Matrix<Scalar, N, N> m = Eigen::Matrix<Scalar, N, N>::Zero();
-      for (size_t q = 0; q < mass_xi[s].size(); ++q) {
-        const auto Nq = E::shape(mass_xi[s][q]);
-        m += (density * mass_dv[s][q]) * Nq * Nq.transpose();
-      }
+      const ElementScalarMatrix<E> m = side_mass(s, density);
+      if (num_sides == 2)  // (a blending element's one side is the element's own rule)
+        for (int a = 0; a < N; ++a)
+          for (int b = 0; b < N; ++b) M.template block<3, 3>(3 * a, 3 * b).diagonal().array() += m(a, b) - (s == 0 ? own(a, b) : 0);
       for (int k = 0; k < n; ++k) {
         const EnrichedDof& dk = enriched[k];
         for (int b = 0; b < N; ++b) {  // a-u blocks and their transposes
@@ -169,18 +175,36 @@ struct CutElement {
     return M;
   }
 
-  /// The enriched dofs' share of a body force per unit mass g: rho sum_s psi^s int_s N g with
-  /// the consistent mass; zero with the lumped one (whose loads are M_L times the field g,
-  /// represented by u = g, a = 0, so that the body falls at exactly g). Indexed by enriched dof.
-  std::vector<Vec3> enriched_body_force(Scalar density, const Vec3& g, MassKind kind) const {
-    std::vector<Vec3> F(enriched.size(), Vec3::Zero());
+  /// Side s's consistent mass m^s = rho sum_q N N^T dv_q over its mass rule.
+  ElementScalarMatrix<E> side_mass(int s, Scalar density) const {
+    ElementScalarMatrix<E> m = ElementScalarMatrix<E>::Zero();
+    for (size_t q = 0; q < mass_xi[s].size(); ++q) {
+      const auto Nq = E::shape(mass_xi[s][q]);
+      m += (density * mass_dv[s][q]) * Nq * Nq.transpose();
+    }
+    return m;
+  }
+
+  /// The body force per unit mass g's share beyond the standard assembly's (span vector), given
+  /// the element's own mass `own` as in enriched_mass: with the consistent mass, rho sum_s psi^s
+  /// int_s N g on the enriched dofs, and on a cut element's standard ones (sum_s m^s - own) 1 g
+  /// (the standard load from the sides' rules, as the mass is: M r g for a rigid translation r,
+  /// so a body falls at g); zero with the lumped mass (whose loads are M_L times the field g,
+  /// represented by u = g, a = 0, so that the body falls at exactly g).
+  SpanVector body_force(Scalar density, const Vec3& g, MassKind kind, const ElementScalarMatrix<E>& own) const {
+    SpanVector F = SpanVector::Zero(3 * span());
     if (kind == MassKind::Lumped) return F;
-    for (int s = 0; s < num_sides; ++s)
+    for (int s = 0; s < num_sides; ++s) {
+      if (num_sides == 2) {  // int_s N_a rho dv = sum_b m^s_ab (the shape functions sum to 1)
+        const Eigen::Matrix<Scalar, N, 1> row_sums = side_mass(s, density).rowwise().sum();
+        for (int a = 0; a < N; ++a) F.template segment<3>(3 * a) += (row_sums[a] - (s == 0 ? own.row(a).sum() : 0)) * g;
+      }
       for (size_t q = 0; q < mass_xi[s].size(); ++q) {
         const auto Nq = E::shape(mass_xi[s][q]);
         for (size_t k = 0; k < enriched.size(); ++k)
-          F[k] += density * mass_dv[s][q] * enriched[k].psi[s] * Nq[enriched[k].node] * g;
+          F.template segment<3>(3 * (N + static_cast<int>(k))) += density * mass_dv[s][q] * enriched[k].psi[s] * Nq[enriched[k].node] * g;
       }
+    }
     return F;
   }
 
