@@ -278,11 +278,15 @@ class Enrichment {
       // The level set wherever it was evaluated (every node of the elements the cut meets,
       // snapped), which an embedded surface splits along (embedding/embedded_surface.hpp: a
       // surface that fell back on the unsnapped distance there stayed joined across a snapped
-      // cut); the signs of the candidates, which their enriched dofs' psi take.
+      // cut); the signs of the candidates, which their enriched dofs' psi take. A node this cut
+      // enriched before keeps its sign: the elements around it took their psi with it, and a
+      // grown surface that passes the node again (a spiral's next turn) may put it on the other
+      // side; its dof must keep one H_i everywhere, or the shifted enrichment leaves Heaviside's
+      // space (16% of the field off, review).
       for (Index i = 0; i < n; ++i)
         if (!std::isnan(phi[i])) record.phi[i] = phi[i];
       for (Index i : candidates)
-        if (!std::isnan(phi[i])) record.H[i] = phi[i] >= 0 ? 1 : -1;
+        if (!std::isnan(phi[i]) && record.row[i] < 0) record.H[i] = phi[i] >= 0 ? 1 : -1;
       const Index dofs_before = dofs.num_dofs();
       for (Index i : enrich) record.row[i] = dofs.add_slot(i);
       rep.enriched_nodes = static_cast<int>(enrich.size());
