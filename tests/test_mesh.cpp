@@ -235,6 +235,37 @@ TEST_CASE("mesh validation gives clear errors", "[mesh][errors]") {
   }
 }
 
+TEST_CASE("point location: a point inside a curved Tet10 past its nodes' box is found", "[mesh][locate]") {
+  // The face (0, 2, 3) on x = 0 with its three mid-edge nodes pushed out to x = -0.04: the face
+  // bulges to x = -4/3 0.04 at its centre, past every node (found by review on a curved mesh,
+  // where EmbeddedPoints refused such a point as in no element). Points x(xi) at reference
+  // coordinates inside, near that face, must be found at the same xi (Newton's 1e-14 relative
+  // residual: a few 1e-15 of xi).
+  Eigen::Matrix3Xd X(3, 10);
+  X.leftCols<4>() << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+  for (int k = 0; k < 6; ++k) {
+    const auto [i, j] = Tet10::edges[static_cast<size_t>(k)];
+    X.col(4 + k) = 0.5 * (X.col(i) + X.col(j));
+  }
+  for (int node : {6, 7, 9}) X(0, node) = -0.04;  // edges (0, 2), (0, 3), (2, 3)
+  const Mesh<Tet10> mesh(X, {{0, 1, 2, 3, 4, 5, 6, 7, 8, 9}});
+  const PointLocator<Tet10> locator(mesh);
+  const ElementNodes<Tet10> Xe = mesh.element_nodes(0);
+  int outside_nodes_box = 0;
+  for (const Vec3& xi : {Vec3(0.01, 1.0 / 3, 1.0 / 3), Vec3(0.002, 0.3, 0.4), Vec3(0.05, 0.2, 0.2), Vec3(0.25, 0.25, 0.25)}) {
+    const Vec3 p = Xe * Tet10::shape(xi);
+    outside_nodes_box += p.x() < -0.04;
+    for (const auto& found : {locate_point(mesh, p), locator.locate(p)}) {
+      INFO("xi " << xi.transpose() << " at " << p.transpose());
+      CHECK(found.has_value());
+      if (found) CHECK((found->xi - xi).norm() <= 1e-13);
+    }
+  }
+  CHECK(outside_nodes_box == 2);
+  // A point just outside the bulging face is still refused.
+  CHECK_FALSE(locate_point(mesh, Vec3(Xe * Tet10::shape(Vec3(0, 1.0 / 3, 1.0 / 3)) - Vec3(1e-3, 0, 0))).has_value());
+}
+
 TEMPLATE_LIST_TEST_CASE("point locator: the answers of testing every element, at a fraction of the elements",
                         "[mesh][locate]", AllElements) {
   // Random points in and around the bounding box, points exactly on nodes and edges (shared by

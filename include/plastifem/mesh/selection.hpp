@@ -168,11 +168,33 @@ bool in_reference_element(const Vec3& xi, Scalar tol = 1e-10) {
   return E::contains(xi, tol);
 }
 
+/// A box holding the whole element with rest nodes Xe: its nodes' box for a linear element
+/// (non-negative shape functions: each point is a convex combination of the nodes). A
+/// quadratic tetrahedron's edges and faces bulge past its nodes: x(xi) is the corners' affine
+/// map plus sum_k 4 L_i L_j d_k over its edges (i, j), d_k = X_{4+k} - (X_i + X_j) / 2, and
+/// sum_k 4 L_i L_j = 2 (1 - sum L^2) <= 3/2, so the box widens by 3/2 max_k |d_k| per axis (a
+/// point inside a curved Tet10 but outside its nodes' box was refused; straight, it is unchanged).
+template <FiniteElement E>
+std::array<Vec3, 2> element_box(const ElementNodes<E>& Xe) {
+  Vec3 lo = Xe.rowwise().minCoeff(), hi = Xe.rowwise().maxCoeff();
+  if constexpr (E::order == 2 && E::num_vertices == 4 && E::num_nodes == 10) {
+    Vec3 bulge = Vec3::Zero();
+    for (int k = 0; k < 6; ++k) {
+      const auto [i, j] = E::edges[static_cast<size_t>(k)];
+      bulge = bulge.cwiseMax((Xe.col(4 + k) - 0.5 * (Xe.col(i) + Xe.col(j))).cwiseAbs());
+    }
+    lo -= 1.5 * bulge, hi += 1.5 * bulge;
+  } else {
+    static_assert(E::order == 1, "element_box: a bound for this element's curved shape is needed");
+  }
+  return {lo, hi};
+}
+
 /// X's reference coordinates in the element with rest nodes Xe, if it lies in it (within tol
 /// relative to the element's size): Newton on x(xi) = X from the element's centre.
 template <FiniteElement E>
 std::optional<Vec3> locate_in_element(const ElementNodes<E>& Xe, const Vec3& X, Scalar tol = 1e-9) {
-  const Vec3 lo = Xe.rowwise().minCoeff(), hi = Xe.rowwise().maxCoeff();
+  const auto [lo, hi] = element_box<E>(Xe);
   const Scalar h = (hi - lo).maxCoeff();
   if (((X - lo).array() < -tol * h).any() || ((X - hi).array() > tol * h).any()) return std::nullopt;
   Vec3 xi = reference_centre<E>();
@@ -212,8 +234,7 @@ class PointLocator {
     // Element boxes, widened by the tolerance (relative to the element, as locate_in_element).
     std::vector<std::array<Vec3, 2>> box(static_cast<size_t>(ne));
     for (Index e = 0; e < ne; ++e) {
-      const ElementNodes<E> Xe = mesh.element_nodes(e);
-      const Vec3 a = Xe.rowwise().minCoeff(), b = Xe.rowwise().maxCoeff();
+      const auto [a, b] = element_box<E>(mesh.element_nodes(e));
       const Scalar pad = tol * (b - a).maxCoeff();
       box[static_cast<size_t>(e)] = {a.array() - pad, b.array() + pad};
     }
