@@ -193,29 +193,28 @@ class Discretization {
   }
 
   /// The enriched elements' share of the mass matrix beyond the standard assembly's
-  /// (assemble_mass: each element's own), added into M (assembly/mass.hpp's pattern for this dof
-  /// map; enrichment/cut_element.hpp).
-  void add_enriched_mass(BlockSymmetricMatrix& M, MassKind kind) const
+  /// (assemble_mass: each element's own, `own_mass(e)`, which the caller keeps), added into M
+  /// (assembly/mass.hpp's pattern for this dof map; enrichment/cut_element.hpp).
+  template <class OwnMass>
+  void add_enriched_mass(BlockSymmetricMatrix& M, MassKind kind, OwnMass&& own_mass) const
     requires Enriched
   {
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const Index e = enrichment_.element_of(k);
       const Scalar rho = material().density * mesh_.weight(e);
-      assembler_.add_extended_matrix(
-          e, enrichment_.elements()[k].enriched_mass(rho, kind, element_mass<E>(mesh_.element_nodes(e), rho, kind)),
-          M.values());
+      assembler_.add_extended_matrix(e, enrichment_.elements()[k].enriched_mass(rho, kind, own_mass(e)), M.values());
     }
   }
   /// The enriched elements' share of a body force per unit mass g beyond the standard load's
-  /// (body_force_load; enrichment/cut_element.hpp), added into F.
+  /// (body_force_load; enrichment/cut_element.hpp), added into F; none with the lumped mass.
   void add_enriched_body_force(const Vec3& g, MassKind kind, Vector& F) const
     requires Enriched
   {
+    if (kind == MassKind::Lumped) return;
     for (size_t k = 0; k < enrichment_.elements().size(); ++k) {
       const CutElement<E>& c = enrichment_.elements()[k];
       const Index e = enrichment_.element_of(k);
-      const Scalar rho = material().density * mesh_.weight(e);
-      const auto f = c.body_force(rho, g, kind, element_mass<E>(mesh_.element_nodes(e), rho, kind));
+      const auto f = c.body_force(mesh_.element_nodes(e), material().density * mesh_.weight(e), g);
       for (int a = 0; a < N; ++a) F.template segment<3>(3 * mesh_.element(e)[a]) += f.template segment<3>(3 * a);
       for (size_t j = 0; j < c.enriched.size(); ++j)
         F.template segment<3>(3 * c.enriched[j].row) += f.template segment<3>(3 * (N + static_cast<int>(j)));

@@ -38,6 +38,17 @@ ElementScalarMatrix<E> element_mass(const ElementNodes<E>& X, Scalar density, Ma
   return m;
 }
 
+/// rho int N_a dV per node a, over the element's mass rule: its consistent nodal loads per unit
+/// body force (the row sums of its consistent mass, since sum_b N_b = 1).
+template <FiniteElement E>
+Eigen::Matrix<Scalar, E::num_nodes, 1> element_nodal_mass(const ElementNodes<E>& X, Scalar density) {
+  const auto q = E::template quadrature<E::mass_degree>();
+  Eigen::Matrix<Scalar, E::num_nodes, 1> v = Eigen::Matrix<Scalar, E::num_nodes, 1>::Zero();
+  for (int k = 0; k < q.size; ++k)
+    v += (density * q.weights[k] * jacobian<E>(X, q.points[k]).determinant()) * E::shape(q.points[k]);
+  return v;
+}
+
 /// M = the element scalar mass matrices mass_of(e) scattered into `assembler`'s pattern (M's
 /// values are overwritten).
 template <FiniteElement E, class ElementMassOf>
@@ -63,21 +74,13 @@ void assemble_mass(const Mesh<E>& mesh, const Assembler<E>& assembler, Scalar de
 template <FiniteElement E>
 Vector body_force_load(const Mesh<E>& mesh, Scalar density, const Vec3& g, MassKind kind = MassKind::Consistent) {
   Vector F = Vector::Zero(3 * mesh.num_nodes());
-  const auto q = E::template quadrature<E::mass_degree>();
   for (Index e = 0; e < mesh.num_elements(); ++e) {
     const ElementNodes<E> X = mesh.element_nodes(e);
     const auto& c = mesh.element(e);
     const Scalar rho = density * mesh.weight(e);
-    if (kind == MassKind::Lumped) {
-      const auto m = element_mass<E>(X, rho, MassKind::Lumped);
-      for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * c[a]) += m(a, a) * g;
-      continue;
-    }
-    for (int k = 0; k < q.size; ++k) {
-      const Scalar dm = rho * q.weights[k] * jacobian<E>(X, q.points[k]).determinant();
-      const auto Nk = E::shape(q.points[k]);
-      for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * c[a]) += dm * Nk[a] * g;
-    }
+    const Eigen::Matrix<Scalar, E::num_nodes, 1> m =
+        kind == MassKind::Lumped ? element_mass<E>(X, rho, MassKind::Lumped).diagonal().eval() : element_nodal_mass<E>(X, rho);
+    for (int a = 0; a < E::num_nodes; ++a) F.segment<3>(3 * c[a]) += m[a] * g;
   }
   return F;
 }

@@ -185,26 +185,25 @@ struct CutElement {
     return m;
   }
 
-  /// The body force per unit mass g's share beyond the standard assembly's (span vector), given
-  /// the element's own mass `own` as in enriched_mass: with the consistent mass, rho sum_s psi^s
-  /// int_s N g on the enriched dofs, and on a cut element's standard ones (sum_s m^s - own) 1 g
-  /// (the standard load from the sides' rules, as the mass is: M r g for a rigid translation r,
-  /// so a body falls at g); zero with the lumped mass (whose loads are M_L times the field g,
-  /// represented by u = g, a = 0, so that the body falls at exactly g).
-  SpanVector body_force(Scalar density, const Vec3& g, MassKind kind, const ElementScalarMatrix<E>& own) const {
+  /// The body force per unit mass g's share beyond the standard load's (span vector) with the
+  /// consistent mass (the lumped mass has none: its loads are M_L times the field g, represented
+  /// by u = g, a = 0, so that the body falls at exactly g). Per side, v^s_a = rho int_s N_a dv
+  /// over its mass rule: rho sum_s psi^s v^s_node g on the enriched dofs, and on a cut element's
+  /// standard ones (sum_s v^s - v) g, v the element's own (element_nodal_mass at rest nodes X,
+  /// as body_force_load has it): the standard load from the sides' rules, as the mass is, so
+  /// that M r g is the load of a rigid translation r and a body falls at g.
+  SpanVector body_force(const ElementNodes<E>& X, Scalar density, const Vec3& g) const {
     SpanVector F = SpanVector::Zero(3 * span());
-    if (kind == MassKind::Lumped) return F;
+    Eigen::Matrix<Scalar, N, 1> standard = Eigen::Matrix<Scalar, N, 1>::Zero();
+    if (num_sides == 2) standard = -element_nodal_mass<E>(X, density);  // (a blending element's one side is its own rule)
     for (int s = 0; s < num_sides; ++s) {
-      if (num_sides == 2) {  // int_s N_a rho dv = sum_b m^s_ab (the shape functions sum to 1)
-        const Eigen::Matrix<Scalar, N, 1> row_sums = side_mass(s, density).rowwise().sum();
-        for (int a = 0; a < N; ++a) F.template segment<3>(3 * a) += (row_sums[a] - (s == 0 ? own.row(a).sum() : 0)) * g;
-      }
-      for (size_t q = 0; q < mass_xi[s].size(); ++q) {
-        const auto Nq = E::shape(mass_xi[s][q]);
-        for (size_t k = 0; k < enriched.size(); ++k)
-          F.template segment<3>(3 * (N + static_cast<int>(k))) += density * mass_dv[s][q] * enriched[k].psi[s] * Nq[enriched[k].node] * g;
-      }
+      Eigen::Matrix<Scalar, N, 1> v = Eigen::Matrix<Scalar, N, 1>::Zero();
+      for (size_t q = 0; q < mass_xi[s].size(); ++q) v += (density * mass_dv[s][q]) * E::shape(mass_xi[s][q]);
+      if (num_sides == 2) standard += v;
+      for (size_t k = 0; k < enriched.size(); ++k)
+        F.template segment<3>(3 * (N + static_cast<int>(k))) += enriched[k].psi[s] * v[enriched[k].node] * g;
     }
+    for (int a = 0; a < N; ++a) F.template segment<3>(3 * a) = standard[a] * g;
     return F;
   }
 

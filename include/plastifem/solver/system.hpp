@@ -270,10 +270,9 @@ class System {
               element_mass<E>(mesh.element_nodes(e), body.material().density * mesh.weight(e), kind);
         element_mass_kind_ = kind;
       }
-      scatter_mass(
-          mesh, body.assembler(),
-          [this](Index e) -> const ElementScalarMatrix<E>& { return element_masses_[static_cast<size_t>(e)]; }, M);
-      if (body.has_cuts()) body.add_enriched_mass(M, kind);
+      const auto own = [this](Index e) -> const ElementScalarMatrix<E>& { return element_masses_[static_cast<size_t>(e)]; };
+      scatter_mass(mesh, body.assembler(), own, M);
+      if (body.has_cuts()) body.add_enriched_mass(M, kind, own);
     }
   }
 
