@@ -22,15 +22,19 @@
 //     $Entities): each becomes a node set (all nodes of its elements), named by $PhysicalNames or
 //     "physical_<tag>". Groups of different dimensions with the same name share one set. A 2D
 //     group (triangles, quadrangles) also becomes a face set: each surface element is matched by
-//     its corner nodes to a boundary face of the volume mesh; no match is an error.
+//     its corner nodes to a boundary face of the volume mesh. A surface element on a face inside
+//     the mesh (an interface between two volumes) is in the node set only: a face set holds
+//     boundary faces, where tractions act (a group of interior faces alone has no face set). A
+//     surface element that is no face of the mesh at all is an error.
 //   - ReadOptions{.drop_unused_nodes = true} removes the nodes no volume element uses (geometry
 //     points, nodes of surface elements only); node sets lose them.
 // Malformed input throws IoError "file:line: what was expected"; the mesh constructor's
-// MeshError (inverted element, ...) propagates unchanged.
+// MeshError (inverted element, ...) propagates with the file's name before its message.
 #include <plastifem/mesh/io/vtu.hpp>  // detail::TextScanner, parse_number
 #include <plastifem/mesh/selection.hpp>
 
 #include <cmath>
+#include <set>
 #include <tuple>
 #include <unordered_map>
 
@@ -116,7 +120,10 @@ class GmshParser {
       else if (name == "Nodes") v41_ ? parse_nodes41() : parse_nodes22();
       else if (name == "Elements") v41_ ? parse_elements41() : parse_elements22();
       else if (name.substr(0, 3) == "End") s_.fail(fmt::format("unexpected {}: no such section is open", show(line)));
-      else skip_section(name);
+      else {
+        partitioned_ = partitioned_ || name == "PartitionedEntities";
+        skip_section(name);
+      }
     }
     if (!f_.has_nodes) s_.fail("expected a $Nodes section, got end of file");
     if (!f_.has_elements) s_.fail("expected an $Elements section, got end of file");
@@ -223,6 +230,8 @@ class GmshParser {
           expected += 1 + count(t[expected], "the number of bounding entities");
         }
         if (t.size() != expected) s_.fail(fmt::format("expected {} tokens for {}, got {}", expected, what, t.size()));
+        std::sort(phys.begin(), phys.end());  // a tag listed twice is one group
+        phys.erase(std::unique(phys.begin(), phys.end()), phys.end());
         f_.entity_physicals[{dim, tag}] = std::move(phys);
       }
     }
@@ -266,12 +275,14 @@ class GmshParser {
     expect_size(h, 4, header);
     const size_t header_line = s_.line_number();
     const size_t blocks = count(h[0], "numEntityBlocks"), n = count(h[1], "numNodes");
+    for (size_t k = 2; k < 4; ++k) number<long long>(h[k], "a node tag");
     size_t total = 0;
     for (size_t b = 0; b < blocks; ++b) {
       const char* bh = "a node block header 'entityDim entityTag parametric numNodesInBlock'";
       const auto t = data_line("Nodes", bh);
       expect_size(t, 4, bh);
       const int dim = number<int>(t[0], "an entity dimension");
+      number<int>(t[1], "an entity tag");
       const int parametric = number<int>(t[2], "parametric (0 or 1)");
       if (dim < 0 || dim > 3 || (parametric != 0 && parametric != 1))
         s_.fail(fmt::format("expected entityDim in 0..3 and parametric 0 or 1, got {} and {}", dim, parametric));
@@ -341,7 +352,9 @@ class GmshParser {
     expect_size(h, 4, header);
     const size_t header_line = s_.line_number();
     const size_t blocks = count(h[0], "numEntityBlocks"), n = count(h[1], "numElements");
+    for (size_t k = 2; k < 4; ++k) number<long long>(h[k], "an element tag");
     size_t total = 0;
+    std::map<std::pair<int, int>, int> list_of;  // entity -> index in group_lists: one list per entity
     for (size_t b = 0; b < blocks; ++b) {
       const char* bh = "an element block header 'entityDim entityTag elementType numElementsInBlock'";
       const auto t = data_line("Elements", bh);
@@ -354,10 +367,14 @@ class GmshParser {
       if (f_.has_entities) {
         const auto it = f_.entity_physicals.find({dim, entity});
         if (it == f_.entity_physicals.end())
-          s_.fail(fmt::format("element block of entity (dim {}, tag {}), which $Entities does not list", dim, entity));
+          s_.fail(fmt::format("element block of entity (dim {}, tag {}), which $Entities does not list{}", dim, entity,
+                              partitioned_ ? " (a partitioned file, whose blocks belong to $PartitionedEntities: "
+                                             "save the mesh without partitions, or as format 2.2)"
+                                           : ""));
         if (!it->second.empty()) {
-          groups = static_cast<int>(f_.group_lists.size());
-          f_.group_lists.push_back(it->second);
+          auto [at, inserted] = list_of.try_emplace({dim, entity}, static_cast<int>(f_.group_lists.size()));
+          if (inserted) f_.group_lists.push_back(it->second);
+          groups = at->second;
         }
       }
       const auto info = gmsh_type_info(type);
@@ -382,6 +399,7 @@ class GmshParser {
   TextScanner s_;
   GmshFile f_;
   bool v41_ = false;
+  bool partitioned_ = false;  ///< a $PartitionedEntities section was seen (4.1)
 };
 
 }  // namespace detail
@@ -450,7 +468,7 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
     parser.fail_at(f.elements_line, fmt::format("no {} elements (Gmsh type {}) in $Elements", E::name, want));
   Eigen::Matrix3Xd nodes(3, static_cast<Index>(f.xyz.size() / 3));
   std::copy(f.xyz.begin(), f.xyz.end(), nodes.data());
-  Mesh<E> mesh(std::move(nodes), std::move(cells));  // MeshError propagates
+  Mesh<E> mesh = detail::mesh_from_file<E>(file_name, std::move(nodes), std::move(cells));
 
   // Physical groups: (dim, tag) -> elements.
   std::map<std::pair<int, int>, std::vector<const Element*>> groups;
@@ -468,6 +486,22 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
       std::sort(k.begin(), k.end());
       faces.emplace(k, fr);
     }
+  // Every face of the mesh, boundary or not, by the same key: built only if a surface element
+  // matches no boundary face, to tell a face inside the mesh (an interface between two volumes)
+  // from no face at all.
+  std::set<Key> all_faces;
+  auto is_interior_face = [&](const Key& k) {
+    if (all_faces.empty())
+      for (Index e = 0; e < mesh.num_elements(); ++e)
+        for (int fi = 0; fi < E::num_faces; ++fi) {
+          const auto ids = mesh.face_nodes(FaceRef{e, fi});
+          Key key{-1, -1, -1, -1};
+          std::copy_n(ids.begin(), face_corners(ids.shape), key.begin());
+          std::sort(key.begin(), key.end());
+          all_faces.insert(key);
+        }
+    return all_faces.count(k) > 0;
+  };
   std::map<std::string, std::vector<Index>> node_sets;
   std::map<std::string, std::vector<FaceRef>> face_sets;
   for (const auto& [key, members] : groups) {
@@ -478,7 +512,7 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
     for (const Element* el : members)
       for (size_t k = 0; k < el->num_nodes; ++k) ns.push_back(node(*el, k));
     if (dim != 2) continue;
-    std::vector<FaceRef>& fs = face_sets[name];
+    std::vector<FaceRef> fs;
     for (const Element* el : members) {
       const int nc = detail::gmsh_surface_corners(el->type);
       if (nc == 0)
@@ -489,8 +523,9 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
       for (int c = 0; c < nc; ++c) k[static_cast<size_t>(c)] = node(*el, static_cast<size_t>(c));
       std::sort(k.begin(), k.end());
       const auto it = faces.find(k);
+      if (it == faces.end() && is_interior_face(k)) continue;  // inside the mesh: in the node set only
       if (it == faces.end())
-        parser.fail_at(el->line, fmt::format("surface element {} of physical group '{}' matches no boundary face of "
+        parser.fail_at(el->line, fmt::format("surface element {} of physical group '{}' matches no face of "
                                              "the {} mesh{}",
                                              el->tag, name, E::name,
                                              !detail::has_face_with_corners<E>(nc)
@@ -498,6 +533,10 @@ Mesh<E> read_gmsh_string(std::string text, const std::string& file_name = "<stri
                                                                face_corners(E::face_shape(0)))
                                                  : std::string()));
       fs.push_back(it->second);
+    }
+    if (!fs.empty()) {
+      std::vector<FaceRef>& set = face_sets[name];
+      set.insert(set.end(), fs.begin(), fs.end());
     }
   }
   for (auto& [name, ids] : node_sets) {

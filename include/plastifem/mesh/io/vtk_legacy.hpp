@@ -9,9 +9,11 @@
 //     "OFFSETS type" and "CONNECTIVITY type";
 //   - CELL_TYPES n;
 //   - POINT_DATA n / CELL_DATA n with SCALARS (with or without LOOKUP_TABLE), VECTORS, NORMALS,
-//     TENSORS, TENSORS6, TEXTURE_COORDINATES, COLOR_SCALARS and FIELD arrays, all into
+//     TENSORS, TENSORS6, TEXTURE_COORDINATES, COLOR_SCALARS, GLOBAL_IDS, PEDIGREE_IDS, EDGE_FLAGS,
+//     TANGENTS, RATIONAL_WEIGHTS, HIGHER_ORDER_DEGREES and FIELD arrays, all into
 //     MeshData::point_data / cell_data (rows: components); LOOKUP_TABLE data, dataset-level FIELD
-//     data (e.g. TIME) and METADATA blocks are skipped.
+//     data (e.g. TIME), string arrays (which a matrix of numbers cannot hold) and METADATA blocks
+//     are skipped.
 // Keywords are case-insensitive, values may be spread over lines in any way, as in VTK's reader.
 // BINARY files are rejected with an IoError. Malformed input throws IoError "file:line: what was
 // expected"; a cell of another type than E "file: cell 12 has VTK type 5, expected 10 (Tet4)".
@@ -119,11 +121,13 @@ class LegacyVtkParser {
           if (array == "NULL_ARRAY") continue;
           const size_t comps = count("the number of components"), tuples = count("the number of tuples");
           if (comps == 0 || comps > 1000) s_.fail(fmt::format("expected 1 to 1000 components, got {}", comps));
-          if (iequals(token("the array data type"), "string"))
-            s_.fail(fmt::format("FIELD array '{}' holds strings; only numeric arrays are read", array));
+          if (target && tuples != target_n)
+            s_.fail(fmt::format("FIELD array '{}' of {} has {} tuples, expected {}", array, target_name, tuples, target_n));
+          const std::string_view type = token("the array data type");
+          if (skip_text_values(type, comps * tuples)) continue;  // strings: not numeric data
           auto v = values<double>(comps * tuples, fmt::format("FIELD array '{}'", array));
           // Dataset-level FIELD data (e.g. TIME) belongs to no points or cells: skipped.
-          if (target && tuples == target_n) store(*target, array, comps, std::move(v));
+          if (target) store(*target, array, comps, std::move(v));
         }
       } else if (iequals(kw, "LOOKUP_TABLE")) {  // a table's colours: not needed
         token("a lookup table name");
@@ -156,8 +160,8 @@ class LegacyVtkParser {
           std::string_view next;
           if (s_.token(next) && iequals(next, "LOOKUP_TABLE")) token("a lookup table name");
           else s_.restore(look);
-        } else {
-          token("the data type");
+        } else if (skip_text_values(token("the data type"), n * target_n)) {
+          continue;  // string ids (PEDIGREE_IDS): not numeric data
         }
         if (n == 0 || n > 1000) s_.fail(fmt::format("expected 1 to 1000 components, got {}", n));
         store(*target, name, n, values<double>(n * target_n, fmt::format("{} '{}' of {}", kw, name, target_name)));
@@ -209,6 +213,24 @@ class LegacyVtkParser {
     }
     return v;
   }
+  /// Skips n values of a non-numeric array type and says so (false for a numeric type, whose
+  /// values are then still to be read): VTK writes strings one per line (their spaces as %20;
+  /// a line may be empty), variants as 'type value' pairs.
+  bool skip_text_values(std::string_view type, size_t n) {
+    std::string_view rest;
+    if (iequals(type, "string") || iequals(type, "utf8_string")) {
+      s_.line(rest);  // the end of the header line
+      for (size_t i = 0; i < n; ++i)
+        if (!s_.line(rest)) s_.fail(fmt::format("expected {} strings, got end of file after {}", n, i));
+      return true;
+    }
+    if (iequals(type, "variant")) {
+      for (size_t i = 0; i < 2 * n; ++i)
+        if (!s_.token(rest)) s_.fail(fmt::format("expected {} variant values, got end of file", n));
+      return true;
+    }
+    return false;
+  }
   /// METADATA (information keys, VTK >= 9) runs from its keyword to the next blank line.
   void skip_metadata_block() {
     std::string_view rest;
@@ -226,7 +248,11 @@ class LegacyVtkParser {
   /// by the caller where the file gives it (SCALARS, TEXTURE_COORDINATES, COLOR_SCALARS).
   static size_t attribute_components(std::string_view kw) {
     if (iequals(kw, "SCALARS") || iequals(kw, "TEXTURE_COORDINATES") || iequals(kw, "COLOR_SCALARS")) return 1;
-    if (iequals(kw, "VECTORS") || iequals(kw, "NORMALS")) return 3;
+    if (iequals(kw, "GLOBAL_IDS") || iequals(kw, "PEDIGREE_IDS") || iequals(kw, "EDGE_FLAGS") ||
+        iequals(kw, "RATIONAL_WEIGHTS"))
+      return 1;
+    if (iequals(kw, "VECTORS") || iequals(kw, "NORMALS") || iequals(kw, "TANGENTS") || iequals(kw, "HIGHER_ORDER_DEGREES"))
+      return 3;
     if (iequals(kw, "TENSORS")) return 9;
     if (iequals(kw, "TENSORS6")) return 6;
     return 0;
@@ -271,7 +297,7 @@ MeshData<E> read_vtk_legacy_string(std::string text, const std::string& file_nam
 
 /// Reads an ASCII legacy .vtk UNSTRUCTURED_GRID of E cells with its point and cell data. Throws
 /// IoError on malformed input ("file:line: what was expected"), a cell of another type or a file
-/// without cells; the mesh constructor's MeshError (inverted element, ...) propagates.
+/// without cells; the mesh constructor's MeshError (inverted element, ...) names the file.
 template <FiniteElement E>
 MeshData<E> read_vtk_legacy(const std::filesystem::path& file, const ReadOptions& options = {}) {
   return read_vtk_legacy_string<E>(detail::read_file(file), file.string(), options);

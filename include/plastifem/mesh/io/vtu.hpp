@@ -40,6 +40,7 @@
 #include <string>
 #include <string_view>
 #include <type_traits>
+#include <unordered_set>
 #include <vector>
 
 namespace plastifem::io {
@@ -569,6 +570,20 @@ inline bool is_name_char(char c) {
   return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == ':' || c == '.' || c == '-';
 }
 
+/// Appends the UTF-8 encoding of code point `c` (at most 0x10FFFF).
+inline void append_utf8(std::string& out, unsigned c) {
+  auto byte = [&](unsigned v) { out += static_cast<char>(static_cast<unsigned char>(v)); };
+  if (c < 0x80) {
+    byte(c);
+  } else if (c < 0x800) {
+    byte(0xC0 | (c >> 6)), byte(0x80 | (c & 0x3F));
+  } else if (c < 0x10000) {
+    byte(0xE0 | (c >> 12)), byte(0x80 | ((c >> 6) & 0x3F)), byte(0x80 | (c & 0x3F));
+  } else {
+    byte(0xF0 | (c >> 18)), byte(0x80 | ((c >> 12) & 0x3F)), byte(0x80 | ((c >> 6) & 0x3F)), byte(0x80 | (c & 0x3F));
+  }
+}
+
 inline std::string xml_unescape(std::string_view s, const std::string& path, size_t line) {
   std::string out;
   for (size_t i = 0; i < s.size(); ++i) {
@@ -589,9 +604,10 @@ inline std::string xml_unescape(std::string_view s, const std::string& path, siz
       const bool hex = ent[1] == 'x' || ent[1] == 'X';
       const std::string_view digits = ent.substr(hex ? 2 : 1);
       const auto [p, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), code, hex ? 16 : 10);
-      if (ec != std::errc() || p != digits.data() + digits.size() || code == 0 || code > 127)
-        parse_fail(path, line, fmt::format("expected an ASCII character reference, got {}", show(ent)));
-      out += static_cast<char>(code);
+      if (ec != std::errc() || p != digits.data() + digits.size() || code == 0 || code > 0x10FFFF ||
+          (code >= 0xD800 && code <= 0xDFFF))
+        parse_fail(path, line, fmt::format("expected a character reference to a Unicode character, got {}", show(ent)));
+      append_utf8(out, code);
     } else {
       parse_fail(path, line, fmt::format("unknown entity &{};", ent));
     }
@@ -605,6 +621,7 @@ inline std::string xml_unescape(std::string_view s, const std::string& path, siz
 inline XmlDocument scan_xml(const std::string& text, const std::string& path) {
   XmlDocument doc;
   std::vector<int> open;
+  std::unordered_set<std::string_view> keys;
   size_t p = 0, line = 1, counted = 0;  // line number at position `counted`
   auto line_of = [&](size_t pos) {
     if (pos < counted) line = 1, counted = 0;  // error paths may look back
@@ -670,6 +687,7 @@ inline XmlDocument scan_xml(const std::string& text, const std::string& path) {
     el.name = name;
     el.line = line_of(lt);
     bool self_closing = false;
+    keys.clear();  // this element's attribute names (views into text), for repeats in O(1) each
     while (true) {
       while (i < text.size() && is_space(text[i])) ++i;
       if (i >= text.size()) fail_at(lt, fmt::format("expected '>' closing <{}, got end of file", name));
@@ -692,7 +710,8 @@ inline XmlDocument scan_xml(const std::string& text, const std::string& path) {
         fail_at(i, fmt::format("expected a quoted value for attribute {} of <{}>", key, name));
       const size_t close = text.find(text[i], i + 1);
       if (close == std::string::npos) fail_at(i, fmt::format("expected the closing quote of attribute {} of <{}>", key, name));
-      if (el.attribute(key)) fail_at(i, fmt::format("attribute {} appears twice in <{}>", key, name));
+      if (!keys.insert(std::string_view(text).substr(ab, key.size())).second)
+        fail_at(i, fmt::format("attribute {} appears twice in <{}>", key, name));
       el.attributes.emplace_back(std::move(key), xml_unescape(std::string_view(text).substr(i + 1, close - i - 1), path, line_of(i)));
       i = close + 1;
     }
@@ -765,9 +784,9 @@ class VtuArrays {
       if (*ht != "UInt32" && *ht != "UInt64") fail(root, fmt::format("expected header_type=\"UInt32\" or \"UInt64\", got {}", show(*ht)));
       header_size_ = *ht == "UInt64" ? 8 : 4;
     }
-    if (const std::string* c = root.attribute("compressor"); c && !c->empty())
-      fail(root, fmt::format("compressed data (compressor=\"{}\") is not supported; write the file without "
-                             "compression (ParaView: Save Data, Compressor Type: None)", *c));
+    // VTK names its compressor on ASCII files too, where nothing is compressed: refused only
+    // when binary data is read.
+    if (const std::string* c = root.attribute("compressor"); c && !c->empty()) compressor_ = c;
     if (doc.appended_element >= 0) {
       const XmlElement& ad = doc.elements[static_cast<size_t>(doc.appended_element)];
       const std::string* enc = ad.attribute("encoding");
@@ -806,6 +825,9 @@ class VtuArrays {
     const std::string* format = a.attribute("format");
     if (!format) fail(a, fmt::format("DataArray '{}' has no format attribute", name(a)));
     if (*format == "ascii") return read_ascii<T>(a, count, floating);
+    if (compressor_)
+      fail(doc_.elements[0], fmt::format("compressed data (compressor=\"{}\") is not supported; write the file without "
+                                         "compression (ParaView: Save Data, Compressor Type: None)", *compressor_));
     std::vector<unsigned char> bytes;
     if (*format == "binary") {
       std::string b64;
@@ -822,6 +844,12 @@ class VtuArrays {
     } else {
       fail(a, fmt::format("DataArray '{}': expected format \"ascii\", \"binary\" or \"appended\", got {}", name(a), show(*format)));
     }
+    // Distinct blocks decode to less than the file holds; arrays sharing one block (offsets
+    // alike) would each decode it again, a small file claiming gigabytes.
+    decoded_ += bytes.size();
+    if (decoded_ > text_.size())
+      fail(a, fmt::format("DataArray '{}': the binary arrays read so far decode to {} bytes, more than the file's {} "
+                          "(arrays sharing one block of data?)", name(a), decoded_, text_.size()));
     const size_t size = type_size(*type);
     if (bytes.size() != count * size)
       fail(a, fmt::format("DataArray '{}' holds {} bytes, expected {} ({} values of type {})", name(a), bytes.size(),
@@ -912,11 +940,13 @@ class VtuArrays {
     };
     // The header's characters decode to header_size_ bytes plus 0 to 2 of the data, or to fewer
     // than header_size_ if they end in more padding than the header needs ("...==" for UInt64:
-    // 7 bytes); header_value checks.
+    // 7 bytes); header_value checks. Exactly header_size_ bytes: the header was encoded alone
+    // (or with no data, where both layouts agree). Padding alone does not tell: a one-byte array
+    // (one cell's types) after a 4-byte header is 5 bytes, which VTK encodes as "xxxxxxx=".
     const std::vector<unsigned char> head = decode(pos, enc_header);
     const std::uint64_t n = header_value(a, head);
     if (n > s.size()) fail(a, fmt::format("base64 data of '{}' is truncated: {} bytes announced", name(a), n));
-    if (s[pos + enc_header - 1] == '=') return decode(pos + enc_header, static_cast<size_t>((n + 2) / 3 * 4));
+    if (head.size() == header_size_) return decode(pos + enc_header, static_cast<size_t>((n + 2) / 3 * 4));
     const std::vector<unsigned char> all = decode(pos, static_cast<size_t>((header_size_ + n + 2) / 3 * 4));
     if (all.size() < header_size_) fail(a, fmt::format("base64 data of '{}' is shorter than its header", name(a)));
     return std::vector<unsigned char>(all.begin() + static_cast<std::ptrdiff_t>(header_size_), all.end());
@@ -956,7 +986,20 @@ class VtuArrays {
   bool swap_ = false;
   size_t header_size_ = 4;  // VTK's default when header_type is absent
   bool appended_base64_ = false;
+  const std::string* compressor_ = nullptr;  ///< the root's compressor="..." attribute, if not empty
+  mutable size_t decoded_ = 0;               ///< bytes decoded from binary and appended arrays
 };
+
+/// The mesh of `cells` over `nodes`, read from file `path`: the constructor's MeshError
+/// (inverted or degenerate element, ...) names the file before its message.
+template <FiniteElement E>
+Mesh<E> mesh_from_file(const std::string& path, Eigen::Matrix3Xd nodes, std::vector<typename Mesh<E>::Connectivity> cells) {
+  try {
+    return Mesh<E>(std::move(nodes), std::move(cells));
+  } catch (const MeshError& e) {
+    throw MeshError(fmt::format("{}: {}", path, e.what()));
+  }
+}
 
 /// Checks cell offsets and connectivity and builds the mesh (whose constructor validates the
 /// geometry and throws MeshError).
@@ -977,7 +1020,7 @@ Mesh<E> assemble_mesh(const std::string& path, Eigen::Matrix3Xd nodes, const std
     }
     begin = offsets[c];
   }
-  return Mesh<E>(std::move(nodes), std::move(cells));
+  return mesh_from_file<E>(path, std::move(nodes), std::move(cells));
 }
 
 }  // namespace detail
@@ -1074,7 +1117,7 @@ MeshData<E> read_vtu_string(const std::string& text, const std::string& file_nam
 
 /// Reads a .vtu file of E cells (as written by write_vtu) with its point and cell data. Throws
 /// IoError on malformed input ("file:line: what was expected"), a cell of another type or a file
-/// without cells; the mesh constructor's MeshError (inverted element, ...) propagates.
+/// without cells; the mesh constructor's MeshError (inverted element, ...) names the file.
 template <FiniteElement E>
 MeshData<E> read_vtu(const std::filesystem::path& file, const ReadOptions& options = {}) {
   return read_vtu_string<E>(detail::read_file(file), file.string(), options);
