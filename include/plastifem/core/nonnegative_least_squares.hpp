@@ -92,10 +92,14 @@ inline Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& A, const
   detail::PassiveQR qr(A.rows(), b);
   for (Index additions = 0; additions < 3 * n; ++additions) {
     w.noalias() = At * r;
-    Index j = -1;
-    Scalar best = tolerance;
+    // The column of largest gradient; of near-equal ones (within 1e-9 of the largest) the
+    // first, so that round-off in A or b does not decide between them.
+    Scalar top = tolerance;
     for (Index k = 0; k < n; ++k)
-      if (!passive[k] && !blocked[k] && w[k] > best) best = w[k], j = k;
+      if (!passive[k] && !blocked[k]) top = std::max(top, w[k]);
+    Index j = -1;
+    for (Index k = 0; k < n && j < 0; ++k)
+      if (!passive[k] && !blocked[k] && w[k] > tolerance && w[k] >= top - 1e-9 * top) j = k;
     if (j < 0) break;
     if (!qr.add_column(A.col(j))) {  // dependent on the passive columns (or 64 of them)
       blocked[j] = 1;
