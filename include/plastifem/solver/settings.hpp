@@ -127,6 +127,7 @@ struct StepReport {
   int predictor_retries = 0;     ///< dynamics: sub-steps redone from u_n after failing from the predictor
   int realtime_redone = 0;       ///< real time: sub-steps redone as accurate steps (NewmarkSettings::realtime_reach)
   int tangents_kept = 0;         ///< real time: sub-steps that kept their linearisation's tangent (NewmarkSettings::tangent_reach)
+                                 ///< and whose plastic update left the rest shapes (moved ones make it stale)
   /// Sub-steps (statics: load increments) that gave up the exact tangent, indefinite or not a
   /// descent direction, and went on with the projected one (NewtonSettings::exact_tangent): an
   /// unstable equilibrium (a cut body's pieces, which have no contact), strong compression, or

@@ -393,6 +393,9 @@ StepReport Solver<E, Elastic, Plastic, Enrich>::step(Scalar dt) {
       sync_rest_shapes(from);
       StepReport sr = dynamics_.attempt(p, from, to, h, ++serial_);
       sr.plastic = plastic_.after_step(body_, to.u, h, from.plastic, to.plastic, serial_, threads());
+      // Moved rest shapes make the tangent kept at the step's end stale: the next step assembles
+      // one at its start, so this step saved no assembly.
+      if (sr.plastic.elements_changed > 0) sr.tangents_kept = 0;
       return sr;
     });
   } catch (...) {
