@@ -92,8 +92,9 @@ inline Eigen::VectorXd nonnegative_least_squares(const Eigen::MatrixXd& A, const
   detail::PassiveQR qr(A.rows(), b);
   for (Index additions = 0; additions < 3 * n; ++additions) {
     w.noalias() = At * r;
-    // The column of largest gradient; of near-equal ones (within 1e-9 of the largest) the
-    // first, so that round-off in A or b does not decide between them.
+    // The column of largest gradient; of near-equal ones (within 1e-9 times the largest) the
+    // first, so that round-off in A or b does not decide between them. Any column of positive
+    // gradient keeps Lawson and Hanson's descent: the largest is a heuristic, not a condition.
     Scalar top = tolerance;
     for (Index k = 0; k < n; ++k)
       if (!passive[k] && !blocked[k]) top = std::max(top, w[k]);

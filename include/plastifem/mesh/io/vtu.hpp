@@ -928,7 +928,7 @@ class VtuArrays {
   }
 
   /// Base64 starting at `pos` of `s`: either base64(header + data) (VTK's layout) or
-  /// base64(header) + base64(data); the padding '=' after the header tells which.
+  /// base64(header) + base64(data); the header's characters decoded tell which (below).
   std::vector<unsigned char> block(const XmlElement& a, std::string_view s, size_t pos) const {
     const size_t enc_header = (header_size_ + 2) / 3 * 4;  // 8 characters (UInt32), 12 (UInt64)
     auto decode = [&](size_t at, size_t length) {
