@@ -3,8 +3,12 @@
 #include <plastifem/mesh/generators.hpp>
 #include <plastifem/mesh/io/io.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <set>
@@ -163,6 +167,25 @@ TEST_CASE("vtu deformed positions: points = nodes + displacement", "[io][vtu]") 
   o.deform_by = "t";
   const Eigen::VectorXd t = Eigen::VectorXd::Zero(mesh.num_nodes());
   CHECK_THROWS_AS(io::write_vtu(out_path("deformed_bad.vtu"), mesh, {{"t", t}}, {}, o), InvalidArgument);
+
+  // A non-finite displacement would give points the readers refuse: refused here, with the point,
+  // and no file is left behind.
+  std::filesystem::remove(out_path("deformed_nan.vtu"));
+  Eigen::Matrix3Xd bad = u;
+  bad(1, 5) = std::numeric_limits<double>::quiet_NaN();
+  o.deform_by = "displacement";
+  std::string msg;
+  try {
+    io::write_vtu(out_path("deformed_nan.vtu"), mesh, {{"displacement", bad}}, {}, o);
+  } catch (const InvalidArgument& e) {
+    msg = e.what();
+  }
+  CHECK(contains(msg, "write_vtu: point 5 is not finite"));
+  CHECK(contains(msg, "after adding point field 'displacement'"));
+  CHECK(!std::filesystem::exists(out_path("deformed_nan.vtu")));
+  // The same field as data only (no deform_by) is written: a NaN in a field is VTK's to show.
+  io::write_vtu(out_path("deformed_nan.vtu"), mesh, {{"displacement", bad}});
+  CHECK(std::isnan(io::read_vtu<Tet10>(out_path("deformed_nan.vtu")).point_data.at("displacement")(1, 5)));
 }
 
 TEST_CASE("vtu file layout follows the VTK XML format", "[io][vtu]") {
@@ -221,7 +244,12 @@ TEST_CASE("vtu reader errors name the file and the line or cell", "[io][vtu]") {
   SECTION("cells of another type") {
     io::write_vtu(out_path("hex.vtu"), bar_mesh<Hex8>(1, 1, 1));
     const std::string msg = io_error([] { io::read_vtu<Tet4>(out_path("hex.vtu")); });
-    CHECK(contains(msg, "io_hex.vtu: cell 0 has VTK type 12, expected 10 (Tet4)"));
+    // The line of the types array: the first line holding Name="types".
+    std::ifstream in(out_path("hex.vtu"));
+    const std::string text{std::istreambuf_iterator<char>(in), {}};
+    const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(text.find("Name=\"types\"")), '\n');
+    CHECK(line > 1);
+    CHECK(contains(msg, fmt::format("io_hex.vtu:{}: cell 0 has VTK type 12, expected 10 (Tet4)", line)));
     CHECK(contains(msg, "read it as Mesh<Hex8>"));
   }
   // A hand-made file: one tetrahedron and, as cell 1, a triangle (VTK type 5).
@@ -255,7 +283,7 @@ TEST_CASE("vtu reader errors name the file and the line or cell", "[io][vtu]") {
     text.replace(text.find(">4<"), 3, ">4 7<");
     text.replace(text.find(">10<"), 4, ">10 5<");
     const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("mixed.vtu", text)); });
-    CHECK(contains(msg, "io_mixed.vtu: cell 1 has VTK type 5, expected 10 (Tet4)"));
+    CHECK(contains(msg, "io_mixed.vtu:13: cell 1 has VTK type 5, expected 10 (Tet4)"));
   }
   SECTION("non-numeric value: line of the token") {
     const std::string msg = io_error([&] { io::read_vtu<Tet4>(write_text("nan.vtu", head + "0 0 0 1 0 0\n0 x 0 0 0 1\n" + tail)); });
@@ -778,7 +806,10 @@ TEST_CASE("legacy vtk reader errors name the file and line or cell", "[io][vtk]"
   }
   SECTION("cell type") {
     CHECK(contains(msg("type.vtk", head + points + "CELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n12\n"),
-                   "io_type.vtk: cell 0 has VTK type 12, expected 10 (Tet4)"));
+                   "io_type.vtk:11: cell 0 has VTK type 12, expected 10 (Tet4)"));
+    // Two cells, the second's type on a line of its own: that line.
+    CHECK(contains(msg("type2.vtk", head + points + "CELLS 2 10\n4 0 1 2 3\n4 0 1 3 2\nCELL_TYPES 2\n10\n5\n"),
+                   "io_type2.vtk:13: cell 1 has VTK type 5, expected 10 (Tet4)"));
   }
   SECTION("non-numeric and missing values") {
     CHECK(contains(msg("nonnum.vtk", head + "POINTS 4 double\n0 0 0 1 0 0\n0 one 0 0 0 1\n" + cells),

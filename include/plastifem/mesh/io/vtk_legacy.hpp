@@ -100,7 +100,12 @@ class LegacyVtkParser {
         if (types) s_.fail("a second CELL_TYPES section");
         types_line = s_.line_number();
         const size_t n = count("the number of cell types");
-        types = values<std::int64_t>(n, "CELL_TYPES");
+        types.emplace();
+        types->reserve(std::min<size_t>(n, 1u << 20));
+        for (size_t c = 0; c < n; ++c) {  // checked as read, so the error has the value's line
+          types->push_back(value<std::int64_t>(c, n, "CELL_TYPES"));
+          if (const auto why = wrong_cell_type<E>(c, types->back())) s_.fail(*why);
+        }
       } else if (iequals(kw, "POINT_DATA") || iequals(kw, "CELL_DATA")) {
         const bool point = iequals(kw, "POINT_DATA");
         target_n = count("the number of values");
@@ -172,7 +177,6 @@ class LegacyVtkParser {
     if (!types) s_.fail("expected CELL_TYPES, got end of file");
     if (types->size() != ends.size())
       s_.fail_at(types_line, fmt::format("CELL_TYPES lists {} cells, CELLS {}", types->size(), ends.size()));
-    check_cell_types<E>(s_.path(), *types);
     if (ends.empty())  // a Mesh needs elements; say so with the file's name rather than as a MeshError
       s_.fail_at(cells_line, fmt::format("CELLS lists no cells ({} points): no mesh to read", points->size() / 3));
     const Index np = static_cast<Index>(points->size() / 3);
@@ -194,23 +198,26 @@ class LegacyVtkParser {
       s_.fail(fmt::format("expected {} (a count >= 0), got {}", what, show(t)));
     return static_cast<size_t>(n);
   }
-  /// n numbers; `finite`: refuse nan and inf (coordinates), which parse_number reads.
+  /// Value i of n for `what`; `finite`: refuse nan and inf (coordinates), which parse_number reads.
+  template <class T>
+  T value(size_t i, size_t n, const std::string& what, bool finite = false) {
+    std::string_view t;
+    if (!s_.token(t)) s_.fail(fmt::format("expected {} values for {}, got end of file after {}", n, what, i));
+    T x{};
+    if (!parse_number(t, x))
+      s_.fail(fmt::format("expected {} (value {} of {} for {}), got {}", std::is_integral_v<T> ? "an integer" : "a number",
+                          i + 1, n, what, show(t)));
+    if constexpr (std::is_floating_point_v<T>)
+      if (finite && !std::isfinite(x))
+        s_.fail(fmt::format("expected a finite number (value {} of {} for {}), got {}", i + 1, n, what, show(t)));
+    return x;
+  }
+  /// n numbers, as value().
   template <class T>
   std::vector<T> values(size_t n, const std::string& what, bool finite = false) {
     std::vector<T> v;
     v.reserve(std::min<size_t>(n, 1u << 20));  // n comes from the file: do not trust it with memory
-    std::string_view t;
-    for (size_t i = 0; i < n; ++i) {
-      if (!s_.token(t)) s_.fail(fmt::format("expected {} values for {}, got end of file after {}", n, what, i));
-      T x{};
-      if (!parse_number(t, x))
-        s_.fail(fmt::format("expected {} (value {} of {} for {}), got {}", std::is_integral_v<T> ? "an integer" : "a number",
-                            i + 1, n, what, show(t)));
-      if constexpr (std::is_floating_point_v<T>)
-        if (finite && !std::isfinite(x))
-          s_.fail(fmt::format("expected a finite number (value {} of {} for {}), got {}", i + 1, n, what, show(t)));
-      v.push_back(x);
-    }
+    for (size_t i = 0; i < n; ++i) v.push_back(value<T>(i, n, what, finite));
     return v;
   }
   /// Skips n values of a non-numeric array type and says so (false for a numeric type, whose

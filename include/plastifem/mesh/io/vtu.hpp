@@ -255,15 +255,14 @@ inline const char* element_of_vtk_type(std::int64_t type) {
   }
 }
 
-/// Every cell must be an E: "file: cell 12 has VTK type 5, expected 10 (Tet4)".
+/// Every cell must be an E: what to say of the first one that is not ("cell 12 has VTK type 5,
+/// expected 10 (Tet4)"), nullopt if all are. The readers prefix it with file:line.
 template <FiniteElement E>
-void check_cell_types(const std::string& path, const std::vector<std::int64_t>& types) {
-  for (size_t c = 0; c < types.size(); ++c)
-    if (types[c] != E::vtk_cell_type) {
-      const char* other = element_of_vtk_type(types[c]);
-      fail<IoError>("{}: cell {} has VTK type {}, expected {} ({}){}", path, c, types[c], E::vtk_cell_type, E::name,
-                    other ? fmt::format(" -- the file holds {} cells: read it as Mesh<{}>", other, other) : "");
-    }
+std::optional<std::string> wrong_cell_type(std::size_t cell, std::int64_t type) {
+  if (type == E::vtk_cell_type) return std::nullopt;
+  const char* other = element_of_vtk_type(type);
+  return fmt::format("cell {} has VTK type {}, expected {} ({}){}", cell, type, E::vtk_cell_type, E::name,
+                     other ? fmt::format(" -- the file holds {} cells: read it as Mesh<{}>", other, other) : "");
 }
 
 inline void base64_append(std::string& out, const unsigned char* p, size_t n) {
@@ -452,6 +451,12 @@ inline void write_vtu_cells(const std::filesystem::path& path, Eigen::Matrix3Xd 
       fail<InvalidArgument>("deform_by = '{}' names no 3-component point field", options.deform_by);
     points += it->values;
   }
+  for (Index k = 0; k < num_points; ++k)  // the readers refuse such a file: say so here, with the point
+    if (!points.col(k).allFinite())
+      fail<InvalidArgument>("write_vtu: point {} is not finite ({}, {}, {}){}", k, points(0, k), points(1, k),
+                            points(2, k),
+                            options.deform_by.empty() ? std::string()
+                                                      : fmt::format(" after adding point field '{}'", options.deform_by));
   arrays.push_back(detail::out_array("Points", OutType::f64, 3, points.data(), static_cast<size_t>(points.size())));
 
   std::vector<std::int64_t> offsets(ne);
@@ -526,7 +531,8 @@ inline void write_vtu_cells(const std::filesystem::path& path, Eigen::Matrix3Xd 
 
 /// Writes `mesh` with optional point fields (one column per node) and cell fields (one column per
 /// element). Throws IoError if the file cannot be written, InvalidArgument on a field of the
-/// wrong size, a duplicate name, or a deform_by that names no 3-component point field.
+/// wrong size, a duplicate name, a deform_by that names no 3-component point field, or points
+/// that are not finite (after adding the deform_by field).
 template <FiniteElement E>
 void write_vtu(const std::filesystem::path& path, const Mesh<E>& mesh, const std::vector<Field>& point_data = {},
                const std::vector<Field>& cell_data = {}, const VtuOptions& options = {}) {
@@ -1084,8 +1090,10 @@ MeshData<E> read_vtu_string(const std::string& text, const std::string& file_nam
       if (const std::string* n = a->attribute("Name"); n && *n == name) return *a;
     detail::parse_fail(path, cells.line, fmt::format("expected <DataArray Name=\"{}\"> in <Cells>", name));
   };
-  const auto types = arrays.read<std::int64_t>(cell_array("types"), nc);
-  detail::check_cell_types<E>(path, types);
+  const detail::XmlElement& types_el = cell_array("types");
+  const auto types = arrays.read<std::int64_t>(types_el, nc);
+  for (size_t c = 0; c < nc; ++c)
+    if (const auto why = detail::wrong_cell_type<E>(c, types[c])) fail(types_el, *why);
   const detail::XmlElement& offsets_el = cell_array("offsets");
   const auto offsets = arrays.read<std::int64_t>(offsets_el, nc);
   for (size_t c = 0; c < nc; ++c)  // before sizing the connectivity by the last offset
