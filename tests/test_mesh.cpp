@@ -179,6 +179,21 @@ TEST_CASE("thick shell and tube generators", "[generators]") {
     REQUIRE(contains(error_of([&] { thick_shell_wedge6(s, 0.1, 1); }), "triangle 0 has vertex 5 out of range [0, 3)"));
     REQUIRE(contains(error_of([] { box_hex8({0, 1, 1}); }), "at least one cell"));
   }
+  SECTION("meshes larger than 32-bit indices hold are refused before they are built") {
+    // Each would overflow an int count (UB) or try to allocate tens of GB; the refusal comes
+    // before any allocation, so the test takes no memory.
+    CHECK(contains(error_of([] { bar_mesh<Hex8>(2000, 2000, 2000); }),
+                     "a 2000 x 2000 x 2000 box would have 8.012e+09 nodes and 8e+09 elements; a mesh holds at "
+                     "most 715827882 nodes and 2147483647 elements"));
+    // 720^3 cells: 3.7e8 grid nodes fit, 6 tetrahedra per cell do not.
+    CHECK(contains(error_of([] { bar_mesh<Tet4>(720, 720, 720); }), "2.239e+09 elements"));
+    // 450^3 cells: the Tet4 mesh would fit (9.2e7 nodes, 5.5e8 elements), with its mid-edge nodes 7.3e8 do not.
+    CHECK(contains(error_of([] { bar_mesh<Tet10>(450, 450, 450); }), "a 450 x 450 x 450 box of Tet10 would have 7.314e+08 nodes"));
+    CHECK(contains(error_of([] { bar_mesh<Wedge6>(1, 1, 1 << 30); }), "would have 4.295e+09 nodes"));
+    CHECK(contains(error_of([] { tube_hex8(1.0, 2.0, 1.0, 100000, 100000, 1); }), "a tube of 100000 x 100000 x 1 cells"));
+    TriangleSurface s{Tet4::reference_nodes().leftCols<3>(), {{0, 1, 2}}};
+    CHECK(contains(error_of([&] { thick_shell_wedge6(s, 0.1, 1 << 30); }), "a thick shell of 1073741824 layers on 1 faces"));
+  }
 }
 
 // ---- validation errors name the element / node -------------------------------------------

@@ -31,9 +31,19 @@ namespace detail {
 
 inline Vec3 box_size(const BoxSpec& b) { return b.size.x() < 0 ? Vec3(b.nx, b.ny, b.nz) : b.size; }
 
-inline void check_box(const BoxSpec& b) {
+/// Refuses, before anything is allocated, a mesh larger than a Mesh can index. Counts in double:
+/// products of three ints overflow even 64 bits.
+inline void check_mesh_size(double nodes, double elements, std::string_view what) {
+  if (nodes > static_cast<double>(max_mesh_nodes) || elements > static_cast<double>(max_mesh_elements))
+    fail<InvalidArgument>("{} would have {:.4g} nodes and {:.4g} elements; a mesh holds at most {} nodes and {} "
+                          "elements (32-bit indices)", what, nodes, elements, max_mesh_nodes, max_mesh_elements);
+}
+
+inline void check_box(const BoxSpec& b, int elements_per_cell) {
   if (b.nx < 1 || b.ny < 1 || b.nz < 1)
     fail<InvalidArgument>("box needs at least one cell per direction, got {} x {} x {}", b.nx, b.ny, b.nz);
+  check_mesh_size((b.nx + 1.0) * (b.ny + 1.0) * (b.nz + 1.0), elements_per_cell * (1.0 * b.nx * b.ny * b.nz),
+                  fmt::format("a {} x {} x {} box", b.nx, b.ny, b.nz));
   const Vec3 s = box_size(b);
   if (!(s.array() > 0).all() || !s.allFinite() || !b.origin.allFinite())
     fail<InvalidArgument>("box size must be finite and positive, got ({}, {}, {})", s.x(), s.y(), s.z());
@@ -88,7 +98,7 @@ void name_box_sides(Mesh<E>& mesh, const BoxSpec& b) {
 /// Hex8 grid, one element per cell.
 template <class = void>
 Mesh<Hex8> box_hex8(const BoxSpec& b) {
-  detail::check_box(b);
+  detail::check_box(b, 1);
   std::vector<Mesh<Hex8>::Connectivity> cells;
   cells.reserve(static_cast<size_t>(b.nx) * b.ny * b.nz);
   for (int k = 0; k < b.nz; ++k)
@@ -109,7 +119,7 @@ Mesh<Hex8> box_hex8(const BoxSpec& b) {
 /// both sides: Wedge6::conforming_sub_tetrahedra, docs/xfem.md.)
 template <class = void>
 Mesh<Wedge6> box_wedge6(const BoxSpec& b) {
-  detail::check_box(b);
+  detail::check_box(b, 2);
   std::vector<Mesh<Wedge6>::Connectivity> prisms;
   prisms.reserve(static_cast<size_t>(b.nx) * b.ny * b.nz * 2);
   for (int k = 0; k < b.nz; ++k)
@@ -128,7 +138,7 @@ Mesh<Wedge6> box_wedge6(const BoxSpec& b) {
 /// Freudenthal). Every cell is split the same way, so neighbours' face diagonals match.
 template <class = void>
 Mesh<Tet4> box_tet4_kuhn(const BoxSpec& b) {
-  detail::check_box(b);
+  detail::check_box(b, 6);
   const Eigen::Matrix3Xd X = detail::box_nodes(b);
   // Path 0 -> e_a -> e_a + e_b -> (1,1,1) for each permutation (a, b, c) of the axes.
   static constexpr int paths[6][2] = {{1, 3}, {1, 5}, {2, 3}, {2, 6}, {4, 5}, {4, 6}};
@@ -153,7 +163,7 @@ Mesh<Tet4> box_tet4_kuhn(const BoxSpec& b) {
 /// alternate cells (parity of i + j + k) so that face diagonals match across neighbours.
 template <class = void>
 Mesh<Tet4> box_tet4_five(const BoxSpec& b) {
-  detail::check_box(b);
+  detail::check_box(b, 5);
   const Eigen::Matrix3Xd X = detail::box_nodes(b);
   static constexpr int even[5][4] = {{1, 2, 4, 7}, {0, 1, 2, 4}, {3, 1, 2, 7}, {5, 1, 4, 7}, {6, 2, 4, 7}};
   static constexpr int odd[5][4] = {{0, 3, 5, 6}, {1, 0, 3, 5}, {2, 0, 3, 6}, {4, 0, 5, 6}, {7, 3, 5, 6}};
@@ -196,6 +206,9 @@ Mesh<Tet10> promote_to_tet10(const Mesh<Tet4>& tet4) {
       const std::uint64_t key = (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
       auto [it, inserted] = mid.try_emplace(key, n0 + static_cast<Index>(extra.size()));
       if (inserted) {
+        if (n0 + static_cast<std::int64_t>(extra.size()) >= max_mesh_nodes)  // before the next id overflows
+          fail<InvalidArgument>("promote_to_tet10: the Tet10 mesh of {} tetrahedra would have more than {} nodes "
+                                "(32-bit indices)", tet4.num_elements(), max_mesh_nodes);
         extra.push_back(0.5 * (tet4.node(a) + tet4.node(b)));
         ends.push_back({a, b});
       }
@@ -228,6 +241,14 @@ Mesh<E> bar_mesh(const BoxSpec& b) {
   else if constexpr (std::is_same_v<E, Wedge6>) return box_wedge6(b);
   else {
     static_assert(std::is_same_v<E, Tet10>, "bar_mesh: no box generator for this element type");
+    // Refused before the Tet4 mesh is built: one mid-edge node per grid edge (along the axes),
+    // per face diagonal and per cell's body diagonal of the Kuhn split.
+    const double x = b.nx, y = b.ny, z = b.nz;
+    const double grid = (x + 1) * (y + 1) * (z + 1);
+    const double axis_edges = x * (y + 1) * (z + 1) + (x + 1) * y * (z + 1) + (x + 1) * (y + 1) * z;
+    const double face_diagonals = x * y * (z + 1) + x * (y + 1) * z + (x + 1) * y * z;
+    detail::check_mesh_size(grid + axis_edges + face_diagonals + x * y * z, 6 * x * y * z,
+                            fmt::format("a {} x {} x {} box of Tet10", b.nx, b.ny, b.nz));
     return promote_to_tet10(box_tet4_kuhn(b));
   }
 }
@@ -272,6 +293,8 @@ template <FiniteElement E, class Face, class Cell>
 Mesh<E> stack_shell_layers(const Eigen::Matrix3Xd& surface, const Eigen::Matrix3Xd& normal,
                            const std::vector<Face>& faces, Scalar thickness, int layers, Cell cell) {
   const Index n = static_cast<Index>(surface.cols());
+  check_mesh_size(static_cast<double>(n) * (layers + 1.0), static_cast<double>(faces.size()) * layers,
+                  fmt::format("a thick shell of {} layers on {} faces", layers, faces.size()));
   Eigen::Matrix3Xd X(3, n * (layers + 1));
   for (int l = 0; l <= layers; ++l) X.middleCols(l * n, n) = surface + normal * (thickness * l / layers);
   std::vector<typename Mesh<E>::Connectivity> cells;
@@ -361,6 +384,8 @@ Mesh<Hex8> tube_hex8(Scalar r_in, Scalar r_out, Scalar length, int n_circ, int n
   if (n_circ < 3 || n_axial < 1 || n_radial < 1)
     fail<InvalidArgument>("tube needs n_circ >= 3, n_axial >= 1, n_radial >= 1, got {}, {}, {}", n_circ, n_axial,
                           n_radial);
+  detail::check_mesh_size(1.0 * n_circ * (n_axial + 1.0) * (n_radial + 1.0), 1.0 * n_circ * n_axial * n_radial,
+                          fmt::format("a tube of {} x {} x {} cells", n_circ, n_axial, n_radial));
   QuadSurface s;
   s.nodes.resize(3, static_cast<Index>(n_circ) * (n_axial + 1));
   for (int a = 0; a <= n_axial; ++a)

@@ -45,6 +45,11 @@ struct FaceNodes {
   }
 };
 
+/// The largest mesh plastifem can index: each node carries 3 degrees of freedom, and nodes,
+/// elements and degrees of freedom are numbered by Index (32 bits).
+inline constexpr std::int64_t max_mesh_nodes = std::numeric_limits<Index>::max() / 3;
+inline constexpr std::int64_t max_mesh_elements = std::numeric_limits<Index>::max();
+
 /// What validation found that is not an error.
 struct MeshReport {
   std::vector<Index> unused_nodes;  ///< nodes no element refers to (they carry no stiffness)
@@ -177,6 +182,10 @@ class Mesh {
 template <FiniteElement E>
 MeshReport Mesh<E>::validate() const {
   MeshReport r;
+  if (nodes_.cols() > max_mesh_nodes || elements_.size() > static_cast<size_t>(max_mesh_elements))
+    fail<MeshError>("the mesh has {} nodes and {} elements; a mesh holds at most {} nodes (3 degrees of freedom "
+                    "each) and {} elements (32-bit indices)", nodes_.cols(), elements_.size(), max_mesh_nodes,
+                    max_mesh_elements);
   if (num_elements() == 0)
     fail<MeshError>("the mesh has no elements ({} nodes): nothing to simulate", num_nodes());
   for (Index i = 0; i < num_nodes(); ++i)
