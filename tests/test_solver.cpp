@@ -718,6 +718,24 @@ TEST_CASE("bad input is rejected with clear errors", "[solver][errors]") {
     s.newmark.realtime_reach = inf;
     REQUIRE_NOTHROW((void)Solver<Hex8, Linear>(mesh, soft, s));
   }
+  SECTION("a Newton residual tolerance outside (0, 1)") {
+    // At 1 or more the unloaded start meets it (|r| = |f_ext| there): a static solve under
+    // gravity returned u = 0 after no iteration (review).
+    for (Scalar tol : {0.0, -1e-6, 1.0, 2.0, 1e6, nan, inf}) {
+      SolverSettings s;
+      s.newton.residual_tolerance = tol;
+      INFO("tolerance " << tol);
+      REQUIRE(contains(error_of<InvalidArgument>([&] { (void)Solver<Hex8, Corotational>(mesh, soft, s); }),
+                       "residual tolerance in (0, 1)"));
+    }
+    SolverSettings s;
+    s.newton.residual_tolerance = 0.5;  // loose, but a solve: it must move the bar
+    Solver<Hex8, Corotational> loose(mesh, soft, s);
+    loose.fix(mesh.node_set("xmin"));
+    loose.add_gravity(Vec3(0, 0, -9.81));
+    loose.solve_static();
+    REQUIRE(loose.displacement(mesh.node_set("xmax")[0]).norm() > 0);
+  }
   SECTION("Newmark parameters that are not unconditionally stable") {
     for (const auto& [beta, gamma] : {std::pair{0.0, 0.5}, {1.0 / 6, 0.5}, {0.25, 0.4}, {0.3, 0.7}, {nan, 0.5}}) {
       SolverSettings s;

@@ -110,8 +110,12 @@ enum class Convergence {
 
 /// What one step or static solve did.
 struct StepReport {
+  /// The Newton and CG iterations of the accepted (sub-)steps and load increments. Attempts that
+  /// failed and were redone (from u_n after the predictor, or in halves) are not counted: their
+  /// number is in predictor_retries and substeps. A real-time step redone as an accurate one
+  /// counts its abandoned solve's CG iterations (they are part of that accepted sub-step).
   int newton_iterations = 0;
-  int linear_iterations = 0;     ///< summed over Newton iterations
+  int linear_iterations = 0;     ///< summed over Newton iterations, as newton_iterations
   Scalar residual = 0;           ///< |r| over free dofs at the committed state (real time: after its one solve)
   /// residual / the force scale Newton held it to (NewtonOptions::running_max_scale): in
   /// dynamics the largest balance term over the step's iterations, in statics the larger of the
@@ -203,11 +207,13 @@ inline void validate_settings(const SolverSettings& s) {
       !std::isfinite(s.rayleigh_stiffness))
     fail<InvalidArgument>("Rayleigh coefficients must be finite and >= 0, got alpha = {}, beta = {}", s.rayleigh_mass,
                           s.rayleigh_stiffness);
-  if (!(s.newton.residual_tolerance > 0) || !std::isfinite(s.newton.residual_tolerance) ||
+  // A relative residual tolerance of 1 or more is met by the unloaded start itself (|r| = |f_ext|
+  // there): a static solve would return u = 0 after no iteration.
+  if (!(s.newton.residual_tolerance > 0 && s.newton.residual_tolerance < 1) ||
       !(s.newton.increment_tolerance >= 0) || !std::isfinite(s.newton.increment_tolerance) ||
       s.newton.max_iterations < 1)
-    fail<InvalidArgument>("Newton needs finite tolerances (residual > 0, increment >= 0) and at least one iteration, "
-                          "got {}, {} and {}",
+    fail<InvalidArgument>("Newton needs a residual tolerance in (0, 1), a finite increment tolerance >= 0 and at least "
+                          "one iteration, got {}, {} and {}",
                           s.newton.residual_tolerance, s.newton.increment_tolerance, s.newton.max_iterations);
   for (const LinearSolverSettings* l : {&s.linear, &s.static_linear})  // a direct solve uses neither
     if (!std::isfinite(l->tolerance) ||
