@@ -5,8 +5,9 @@
 // in the cage, follows it. Corotational, E = 5 kPa, nu = 0.45, 1070 kg/m^3, under gravity,
 // resting on a table: the lowest cage node of every column is held, except under the left
 // lobe. The organ settles on the table for 0.5 s; then a grasper takes the cage nodes within
-// 12 mm of a point on the lobe's top, lifts them 25 mm over 1 s, holds 0.5 s and lets go; 1.5 s
-// of damped relaxation follow.
+// 12 mm of a point high on the lobe (on its upper slope, about 6 cm left of the middle:
+// scene::left_lobe_top), lifts them 25 mm over 1 s, holds 0.5 s and lets go; 1.5 s of damped
+// relaxation follow.
 //
 //   liver_cage [--steps N] [--every K] [--out DIR] [--threads N] [--mode accurate|realtime] [--csv FILE]
 //
@@ -53,7 +54,8 @@ int main(int argc, char** argv) try {
   const Cage<Hex8>& cage = organ.cage;
   const Mesh<Hex8>& mesh = cage.mesh;
 
-  // The grasp: the top of the left lobe and the cage nodes within 12 mm of it.
+  // The grasp: a point on the left lobe's upper slope (scene::left_lobe_top, about 6 cm left of
+  // the middle) and the cage nodes within 12 mm of it.
   const Vec3 grasped = scene::left_lobe_top(liver);
   const std::vector<Index> jaws = select_nodes(mesh, [&](const Vec3& p) { return (p - grasped).norm() < 0.012; });
 

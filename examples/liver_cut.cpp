@@ -3,11 +3,12 @@
 // embedded in a cage of 1 cm Hex8 cells weighted by their inside fractions; corotational,
 // E = 5 kPa, nu = 0.45, 1070 kg/m^3, under gravity, resting on a table (the lowest cage node of
 // every column; left of the middle the table bears the weight but lets the tissue slide).
-// After 0.3 s of settling a grasper takes the top of the left lobe and retracts it, 15 mm left
-// and 8 mm up over 1 s, as a surgeon holds tissue under tension; from t = 0.5 s a blade crosses the organ through its whole depth along a
-// curve in plan, at 8 cm/s. The cut grows with the blade (Solver::grow_cut: shifted X-FEM, the
-// cage is not remeshed) and the smooth surface opens along it; the lobe, cut off, stays in the
-// grasper.
+// After 0.3 s of settling a grasper takes the left lobe (at a point on its upper slope, about
+// 6 cm left of the middle: scene::left_lobe_top) and retracts it, 15 mm left and 8 mm up over
+// 1 s, as a surgeon holds tissue under tension; from t = 0.5 s a blade crosses the organ through
+// its whole depth along a curve in plan, at 8 cm/s across (in y). The cut grows with the blade
+// (Solver::grow_cut: shifted X-FEM, the cage is not remeshed) and the smooth surface opens along
+// it; the lobe, cut off, stays in the grasper.
 //
 //   liver_cut [--steps N] [--every K] [--out DIR] [--threads N] [--mode accurate|realtime] [--csv FILE]
 //
@@ -37,11 +38,12 @@ constexpr Scalar t_grasp = 0.3, t_retract = 1.0, t_blade = 0.5, blade_speed = 0.
 const Vec3 retraction(-0.015, 0, 0.008);
 
 /// The blade's path in plan: x = -0.035 + 0.012 sin(pi s), y = -0.065 + 0.13 s for s in [0, 1],
-/// across the organ (it is 9-10 cm wide there) left of its middle, bowed towards the lobe.
+/// across the organ (it is 9-10 cm wide there) left of its middle, bowed away from the lobe,
+/// towards the middle (x = -0.035 at both ends, -0.023 halfway). 0.1327 m long.
 Vec3 path(Scalar s, Scalar z) {
   return Vec3(-0.035 + 0.012 * std::sin(std::numbers::pi * s), -0.065 + 0.13 * s, z);
 }
-constexpr int columns = 52;  // the path in 2.5 mm pieces (0.13 m / 52)
+constexpr int columns = 52;  // the path's pieces: 2.5 mm in y (0.13 m / 52), 2.50-2.60 mm along it
 
 /// The cut the blade has made when it has gone `n` pieces along its path: a sheet from 6 cm
 /// below to 6 cm above the organ's middle (through its whole depth), 4 rows high.
@@ -79,7 +81,8 @@ int main(int argc, char** argv) try {
   const TriangleSurface& liver = organ.surface;
   const Mesh<Hex8>& mesh = organ.cage.mesh;
 
-  // The grasp: the top of the left lobe and the cage nodes within 15 mm of it.
+  // The grasp: a point on the left lobe's upper slope (scene::left_lobe_top, about 6 cm left of
+  // the middle) and the cage nodes within 15 mm of it.
   const Vec3 grasped = scene::left_lobe_top(liver);
   const std::vector<Index> jaws = select_nodes(mesh, [&](const Vec3& p) { return (p - grasped).norm() < 0.015; });
 
@@ -121,7 +124,9 @@ int main(int argc, char** argv) try {
   for (int k = 1; k <= o.steps; ++k) {
     if (k == static_cast<int>(std::lround(t_grasp / dt)) + 1)
       s.grasp(jaws, [](Scalar t) { return grasper_offset(t); });
-    // The blade's progress at this step's start, in whole pieces of its path.
+    // The blade's progress at this step's start, in whole pieces of its path. It is measured in
+    // y: 8 cm/s across, 2.5 mm of y a piece; along the bowed path that is 8.17 cm/s on average
+    // and 2.50-2.60 mm a piece. (The "mm along its path" printed below is the progress in y.)
     const int n = std::clamp(static_cast<int>((s.time() - t_blade) * blade_speed / (0.13 / columns)), 0, columns);
     if (n > reached) {
       reached = n;

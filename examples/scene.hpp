@@ -182,8 +182,10 @@ inline CagedLiver caged_liver(plastifem::Scalar cell) {
   return {std::move(liver), std::move(cage)};
 }
 
-/// The top of the liver's left lobe, 7 cm left of its middle: the surface's highest vertex
-/// within 1 cm of (-0.07, 0) in plan.
+/// The grasp point on the liver's left lobe: the surface's highest vertex within 1 cm of
+/// (-0.07, 0) in plan. The upper surface rises towards the right lobe, so this lands on the
+/// disc's right rim: about 6 cm left of the middle (x about -0.061), on the lobe's upper slope,
+/// not a local top.
 inline plastifem::Vec3 left_lobe_top(const plastifem::TriangleSurface& liver) {
   plastifem::Vec3 top = plastifem::Vec3::Constant(-1e9);
   for (plastifem::Index v = 0; v < liver.num_vertices(); ++v) {
