@@ -44,7 +44,7 @@ class LegacyVtkParser {
       s_.fail(fmt::format("expected DATASET UNSTRUCTURED_GRID, got {} (only unstructured grids are read)", show(last_)));
 
     std::optional<std::vector<double>> points;
-    std::optional<std::vector<std::int64_t>> types;
+    std::optional<size_t> num_types;  // each type is checked as it is read: only the count is kept
     std::vector<std::int64_t> ends, connectivity;  // cell i: connectivity[ends[i-1] .. ends[i])
     std::vector<size_t> cell_lines;
     bool have_cells = false;
@@ -97,15 +97,12 @@ class LegacyVtkParser {
           if (used != b) s_.fail_at(line_no, fmt::format("CELLS announces a list of {} numbers, its {} cells hold {}", b, a, used));
         }
       } else if (iequals(kw, "CELL_TYPES")) {
-        if (types) s_.fail("a second CELL_TYPES section");
+        if (num_types) s_.fail("a second CELL_TYPES section");
         types_line = s_.line_number();
         const size_t n = count("the number of cell types");
-        types.emplace();
-        types->reserve(std::min<size_t>(n, 1u << 20));
-        for (size_t c = 0; c < n; ++c) {  // checked as read, so the error has the value's line
-          types->push_back(value<std::int64_t>(c, n, "CELL_TYPES"));
-          if (const auto why = wrong_cell_type<E>(c, types->back())) s_.fail(*why);
-        }
+        for (size_t c = 0; c < n; ++c)  // checked as read, so the error has the value's line
+          if (const auto why = wrong_cell_type<E>(c, value<std::int64_t>(c, n, "CELL_TYPES"))) s_.fail(*why);
+        num_types = n;
       } else if (iequals(kw, "POINT_DATA") || iequals(kw, "CELL_DATA")) {
         const bool point = iequals(kw, "POINT_DATA");
         target_n = count("the number of values");
@@ -174,9 +171,9 @@ class LegacyVtkParser {
     }
     if (!points) s_.fail("expected POINTS, got end of file");
     if (!have_cells) s_.fail("expected CELLS, got end of file");
-    if (!types) s_.fail("expected CELL_TYPES, got end of file");
-    if (types->size() != ends.size())
-      s_.fail_at(types_line, fmt::format("CELL_TYPES lists {} cells, CELLS {}", types->size(), ends.size()));
+    if (!num_types) s_.fail("expected CELL_TYPES, got end of file");
+    if (*num_types != ends.size())
+      s_.fail_at(types_line, fmt::format("CELL_TYPES lists {} cells, CELLS {}", *num_types, ends.size()));
     if (ends.empty())  // a Mesh needs elements; say so with the file's name rather than as a MeshError
       s_.fail_at(cells_line, fmt::format("CELLS lists no cells ({} points): no mesh to read", points->size() / 3));
     const Index np = static_cast<Index>(points->size() / 3);

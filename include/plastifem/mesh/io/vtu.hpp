@@ -255,8 +255,8 @@ inline const char* element_of_vtk_type(std::int64_t type) {
   }
 }
 
-/// Every cell must be an E: what to say of the first one that is not ("cell 12 has VTK type 5,
-/// expected 10 (Tet4)"), nullopt if all are. The readers prefix it with file:line.
+/// Every cell must be an E: what to say of cell `cell` if its VTK type is not E's ("cell 12 has
+/// VTK type 5, expected 10 (Tet4)"), nullopt if it is. The readers prefix it with file:line.
 template <FiniteElement E>
 std::optional<std::string> wrong_cell_type(std::size_t cell, std::int64_t type) {
   if (type == E::vtk_cell_type) return std::nullopt;
