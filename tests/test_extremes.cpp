@@ -247,18 +247,33 @@ void time_step_decades() {
     s.fix(mesh.node_set("xmin"));
     s.add_gravity(Vec3(0, 0, -9.81));
     Scalar W_max = 0, H_max = 0;
-    int newton = 0, substeps = 0;
-    for (int k = 0; k < 20; ++k) {
-      const StepReport r = s.step(dt);
+    int newton = 0, substeps = 0, taken = 0;
+    for (; taken < 20; ++taken) {
+      const auto before = s.state();
+      try {
+        const StepReport r = s.step(dt);
+        newton += r.newton_iterations, substeps += r.substeps;
+      } catch (const SolverError&) {
+        REQUIRE(s.state() == before);  // refused: the state as it was
+        break;
+      }
       REQUIRE(state_finite(s));
-      newton += r.newton_iterations, substeps += r.substeps;
       const Scalar W = s.external_work_potential();
       W_max = std::max(W_max, W);
       H_max = std::max(H_max, std::abs(s.kinetic_energy() + s.strain_energy() - W));
     }
-    CHECK(s.time() == Approx(20 * dt).epsilon(1e-12));
-    const Scalar rel = H_max / W_max;
-    line += fmt::format(" | 1e{}: {:.1e} ({} N, {} sub)", p, rel, newton, substeps);
+    // Every step is taken up to dt = 0.1 (omega_1 dt ~ 1). At dt = 1 a nonlinear model may be
+    // refused: the trapezoidal rule is known to gain energy on a nonlinear body at omega dt >> 1
+    // (Simo & Tarnow 1992), and Corotational reaches a state at t = 12 from which no step, not
+    // even 64 sub-steps of 1/64, converges (measured: refused at t = 13, |r| 0.10 of its scale
+    // after 50 Newton iterations). A SolverError with the state unchanged is the answer the
+    // standards ask for; before Newton's scale excluded the predictor's forces, the step was
+    // accepted unbalanced and the run ended at 3.7 times the input work.
+    if (M::constant_tangent || dt <= 0.1) CHECK(taken == 20);
+    CHECK(s.time() == Approx(taken * dt).epsilon(1e-12));
+    const Scalar rel = W_max > 0 ? H_max / W_max : 0;
+    line += fmt::format(" | 1e{}: {:.1e} ({} N, {} sub{})", p, rel, newton, substeps,
+                        taken < 20 ? fmt::format(", refused at t = {:g}", (taken + 1) * dt) : "");
     // Undamped Newmark (1/4, 1/2) from rest under a constant load: KE + SE - f.u = 0 exactly
     // for a linear model, whatever dt (unconditionally stable, no numerical dissipation); what
     // remains is the accepted residual (inexact CG, 1e-6 of the force scale at most; measured
@@ -267,13 +282,40 @@ void time_step_decades() {
     // Nonlinear models: the trapezoidal rule is not energy conserving; its error is
     // O((omega dt)^2) in the nonlinear part while the step resolves the motion (measured
     // <= 1.1e-6 up to dt = 0.01, 1.3e-3 at dt = 0.1, where omega_1 dt ~ 1 for bar90), and at
-    // omega dt >> 1 it is known to drift (Simo & Tarnow 1992): measured 3.7 times the input
-    // work for Corotational at dt = 1 (0.25 for NeoHookean). Asserted: 1e-4 while dt <= 0.01,
-    // and a blow-up guard (10 times the input work) beyond.
+    // omega dt >> 1 nothing bounds it (Simo & Tarnow 1992): measured 9.8 times the input work
+    // for Corotational at dt = 1 before the refusal, 0.25 for NeoHookean. Asserted: 1e-4 while
+    // dt <= 0.01, 1e-2 at 0.1; at dt = 1 only that each step is finite or refused (the
+    // dissipative scheme that bounds the energy there is below).
     else if (dt <= 0.01) CHECK(rel < 1e-4);
-    else CHECK(rel < 10);
+    else if (dt <= 0.1) CHECK(rel < 1e-2);
   }
   fmt::print("dt 1e-6..1 bar90 {:12}: max |KE + SE - W| / W per dt{}; {:.0f} ms\n", M::name, line, ms_since(t0));
+}
+
+/// bar90 as above, 20 steps of dt = 1 (omega_1 dt ~ 3.5) with generalized-alpha at rho_inf =
+/// 0.5: every step taken, and the energy stays below the input work. From rest under a constant
+/// load the work done is f.u, and a scheme that dissipates the unresolved modes leaves the body
+/// at most that (measured: KE + SE at most 0.97 W, both models, on the first step; it then
+/// tends to 0.5 W, a linear body's static share). Returns the largest (KE + SE) / W.
+template <class M>
+Scalar dissipative_huge_steps() {
+  const Mesh<Hex8> mesh = bar_mesh<Hex8>(10, 3, 3);
+  SolverSettings settings;
+  settings.newmark = NewmarkSettings::generalized_alpha(0.5);
+  Solver<Hex8, M> s(mesh, soft, settings);
+  s.fix(mesh.node_set("xmin"));
+  s.add_gravity(Vec3(0, 0, -9.81));
+  Scalar worst = 0;
+  for (int k = 0; k < 20; ++k) {
+    s.step(1.0);
+    REQUIRE(state_finite(s));
+    const Scalar W = s.external_work_potential();
+    REQUIRE(W > 0);  // the bar hangs below its rest position throughout (measured W >= 0.24 W_1)
+    worst = std::max(worst, (s.kinetic_energy() + s.strain_energy()) / W);
+  }
+  fmt::print("dt = 1 bar90 {:12}, generalized-alpha rho_inf 0.5: 20 steps, (KE + SE) / W at most {:.3f}\n", M::name,
+             worst);
+  return worst;
 }
 
 // --- 4. 100,000 steps ------------------------------------------------------------------------
@@ -667,10 +709,13 @@ TEST_CASE("extremes 2: E from 1e1 to 1e9 with the load scaled by E: the same dis
   young_decades<NeoHookean>(ldlt, 1, 9, "LDLT");
 }
 
-TEST_CASE("extremes 3: dt from 1e-6 to 1 on bar90: finite, energy bounded by the input work", "[extremes][dt]") {
+TEST_CASE("extremes 3: dt from 1e-6 to 1 on bar90: finite, energy bounded by the input work, or refused", "[extremes][dt]") {
   time_step_decades<Linear>();
   time_step_decades<Corotational>();
   time_step_decades<NeoHookean>();
+  // 1.05: the measured 0.97 with a margin; a scheme without dissipation there ended at 9.8.
+  CHECK(dissipative_huge_steps<Corotational>() <= 1.05);
+  CHECK(dissipative_huge_steps<NeoHookean>() <= 1.05);
 }
 
 TEST_CASE("extremes 4: 100,000 undamped linear steps conserve energy to round-off", "[extremes][energy]") {

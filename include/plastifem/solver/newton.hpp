@@ -68,8 +68,9 @@ struct NewtonOptions {
   bool line_search = false;           ///< whether the line search policy may backtrack
   bool eager_tangent = false;         ///< evaluate the tangent with each new iterate
   Scalar refresh_ratio = 0;           ///< keep the tangent while |r| falls by this factor per iteration (0: never)
-  /// The scale the tolerance applies to: true, the largest seen over the iterations (dynamics: a
-  /// step whose inertia vanishes as Newton converges keeps the scale it started with); false, the
+  /// Without a reference_scale, the scale the tolerance applies to: true, the largest seen over
+  /// the iterations (a step whose inertia vanishes as Newton converges keeps the scale it started
+  /// with; dynamics from a state with no force at all); false, the
   /// larger of the first iterate's (the initial imbalance) and the current iterate's (statics: an
   /// iterate far from equilibrium, with huge internal forces, must not set the scale its
   /// successors are held to; a body held by one node under CG took |r| = 4.6e6 against
@@ -82,6 +83,14 @@ struct NewtonOptions {
   /// its own forces. Capped, such an iterate must meet the tolerance of the step's own scale,
   /// fails, and the step is cut.
   Scalar max_scale_growth = 1e3;
+  /// If > 0, the force scale of the state the solve starts from (dynamics: the committed
+  /// state's, Dynamics::start_step). The scale at an iterate is then this raised to the
+  /// iterate's own, at most max_scale_growth times this, with no running maximum: at a dt far
+  /// beyond the body's lowest period the predictor's forces are (omega dt)^2 times the
+  /// physical ones, and a scale that kept them accepted states far from equilibrium (Hex8
+  /// 4x1x1 bar under gravity, first period 1.8 s, dt = 10: |M a + f_int - f_ext| = 0.40 |f_ext|
+  /// "converged" at tolerance 1e-6; with this, 1.1e-6).
+  Scalar reference_scale = 0;
   /// Also converged when |r| <= this: the round-off level of the force evaluation
   /// (System::rest_force_roundoff), for a body at rest under no load, whose force scale is that
   /// round-off itself (an unloaded Hex8 bar failed its fourth step: |r| = 1.9e-11, "relative 0.58").
@@ -195,10 +204,13 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const Search&
   Scalar rnorm = p.residual(u, true);
   bool tangent_at_u = true, stale = false;
   Scalar first_scale = 0;
-  // The force scale |r| is measured against at the current iterate: `previous` (the largest so
-  // far, or the first) raised to the iterate's own, which may exceed the first iterate's at
-  // most max_scale_growth times (with the running maximum).
+  // The force scale |r| is measured against at the current iterate: with a reference scale,
+  // the reference raised to the iterate's own (capped); else `previous` (the largest so far, or
+  // the first) raised to the iterate's own, which may exceed the first iterate's at most
+  // max_scale_growth times (with the running maximum).
   auto scale_from = [&](Scalar previous) {
+    if (o.reference_scale > 0)
+      return std::max({o.reference_scale, std::min(p.scale(), o.max_scale_growth * o.reference_scale), Scalar(1e-30)});
     const Scalar own = o.running_max_scale ? std::min(p.scale(), o.max_scale_growth * first_scale) : p.scale();
     return std::max({previous, own, Scalar(1e-30)});
   };
