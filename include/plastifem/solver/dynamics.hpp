@@ -259,9 +259,14 @@ class Dynamics {
         fail<SolverError>("Newmark step at t = {}: the current state cannot be evaluated{}; the state is unchanged", t1,
                           where_invalid(p, n.u));
     }
-    if (balanced)
-      start_scale_ = committed_scale_.state != 0 && committed_scale_.state == n.serial ? committed_scale_.scale
-                                                                                      : balance_scale(p, n);
+    const bool remembered = committed_scale_.state != 0 && committed_scale_.state == n.serial;
+    if (balanced) start_scale_ = remembered ? committed_scale_.scale : -1;
+  }
+  /// The start state's force scale: start_scale_, or balance_scale the first time it is asked
+  /// for (a step that needs none, real-time or a linear model's within tolerance, pays nothing).
+  Scalar start_scale(Parts& p, const StateT& n) {
+    if (start_scale_ < 0) start_scale_ = balance_scale(p, n);
+    return start_scale_;
   }
   /// The force scale of a state whose acceleration balances it (M a + D v + f_int(u) = load) and
   /// whose own scale is not known: max(|load|, |M a|, |D v|) over the free dofs (D with the
@@ -428,7 +433,9 @@ class Dynamics {
     o.absolute_tolerance = 10 * p.system.rest_force_roundoff(p.body, p.threads);
     // Measured against the forces of the state the step starts from and of the iterate, not the
     // predictor's: at dt >> 1 / omega those are (omega dt)^2 times too large (NewtonOptions).
-    o.reference_scale = std::max(prob.f_ext_norm, start_scale_);
+    // A linear model's one solve keeps the predictor's scale (the solve's tolerance is the same
+    // as ever); its result is checked against the start state's below.
+    if (!constant_tangent) o.reference_scale = std::max(prob.f_ext_norm, start_scale(p, n));
     // Backtracking needs a descent direction for |r|, which only the exact Jacobian guarantees:
     // with the warped corotational tangent it mostly fails and costs force evaluations (bar720
     // Tet4 Corotational: 9.2 ms per Newton iteration against 4.8 ms without), so without the
@@ -466,7 +473,11 @@ class Dynamics {
       // (omega dt)^2 times the physical forces (Linear, CG, dt = 1000 on a 4 x 1 x 1 bar: |r| =
       // 0.54 |f_ext|). Short of the tolerance of the start state's scale, Newton goes on from
       // the solution, checking each residual against its own scale.
-      if (!(res.residual <= o.tolerance * o.reference_scale || res.residual <= o.absolute_tolerance)) {
+      auto within = [&](Scalar scale) {
+        return res.residual <= o.tolerance * std::max(prob.f_ext_norm, scale) || res.residual <= o.absolute_tolerance;
+      };
+      if (!within(start_scale_) && !within(start_scale(p, n))) {
+        o.reference_scale = std::max(prob.f_ext_norm, start_scale_);
         o.verify_one_solve = true;
         o.min_iterations = 0;
         const NewtonResult more = newton(prob, u_, o, ResidualBacktracking{}, du_, u_new_);
@@ -722,7 +733,7 @@ class Dynamics {
     bool of(const Parts& p, const StateT& n, TangentKind k) const { return state == n.serial && tangent_of(p, k); }
   };
   Linearisation linearisation_;
-  Scalar start_scale_ = 0;  ///< the force scale of the step's start state (start_step)
+  Scalar start_scale_ = -1;  ///< the force scale of the step's start state (start_step); -1: not known yet
   /// The force scale of the state last stored (its serial): the last residual's, evaluated there.
   struct {
     std::uint64_t state = 0;  // 0: none (serials start at 1)
