@@ -347,29 +347,34 @@ TEST_CASE("convergence scale: a free spinning body converges - a tolerance below
   }
 }
 
-/// One accurate step of dt from rest under gravity on the 4 x 1 x 1 Hex8 bar clamped at x = 0
-/// (first period ~1.8 s): |M a + f_int - f_ext| over the free dofs after it, relative to
-/// |f_ext| there; or -1 if the step was refused (a SolverError), which must leave the state as
-/// it was.
+/// Two accurate steps of dt from rest under gravity on the 4 x 1 x 1 Hex8 bar clamped at x = 0
+/// (first period ~1.8 s; the first step starts from the equilibrium acceleration, the second
+/// from the scale the first stored in the state): the larger |M a + f_int - f_ext| over the free
+/// dofs after each, relative to |f_ext| there; or -1 if a step was refused (a SolverError),
+/// which must leave the state as it was.
 template <class Model>
-Scalar imbalance_after_one_step(Scalar dt, LinearSolverKind kind) {
+Scalar imbalance_after_two_steps(Scalar dt, LinearSolverKind kind) {
   const Mesh<Hex8> mesh = bar_mesh<Hex8>(4, 1, 1);
   SolverSettings settings;
   settings.linear.kind = kind;
   Solver<Hex8, Model> solver(mesh, soft, settings);
   solver.fix(mesh.node_set("xmin"));
   solver.add_gravity(Vec3(0, 0, -9.81));
-  const auto before = solver.state();
-  try {
-    solver.step(dt);
-  } catch (const SolverError&) {
-    CHECK(solver.state() == before);
-    return -1;
+  Scalar worst = 0;
+  for (int k = 0; k < 2; ++k) {
+    const auto before = solver.state();
+    try {
+      solver.step(dt);
+    } catch (const SolverError&) {
+      CHECK(solver.state() == before);
+      return -1;
+    }
+    const Vector& f_ext = solver.state().load;  // f_ext(t_n+1)
+    Vector residual = solver.mass_matrix() * solver.state().a + solver.internal_force() - f_ext, load = f_ext;
+    for (Index i : mesh.node_set("xmin")) residual.segment<3>(3 * i).setZero(), load.segment<3>(3 * i).setZero();
+    worst = std::max(worst, residual.norm() / load.norm());
   }
-  const Vector& f_ext = solver.state().load;  // f_ext(t_n+1)
-  Vector residual = solver.mass_matrix() * solver.state().a + solver.internal_force() - f_ext, load = f_ext;
-  for (Index i : mesh.node_set("xmin")) residual.segment<3>(3 * i).setZero(), load.segment<3>(3 * i).setZero();
-  return residual.norm() / load.norm();
+  return worst;
 }
 
 TEST_CASE("convergence scale: a step far beyond the lowest period is balanced to the tolerance, or refused",
@@ -385,19 +390,20 @@ TEST_CASE("convergence scale: a step far beyond the lowest period is balanced to
   for (const LinearSolverKind kind : {LinearSolverKind::ConjugateGradient, LinearSolverKind::Direct}) {
     for (const Scalar dt : {0.01, 1.0, 10.0, 100.0, 1000.0}) {
       INFO("dt = " << dt << (kind == LinearSolverKind::Direct ? ", direct" : ", CG"));
-      const Scalar corotational = imbalance_after_one_step<Corotational>(dt, kind);
-      const Scalar neo_hookean = imbalance_after_one_step<NeoHookean>(dt, kind);
-      const Scalar linear = imbalance_after_one_step<Linear>(dt, kind);
-      fmt::print("one step of dt = {:g} ({}): |r| / |f_ext| Corotational {:.2g}, NeoHookean {:.2g}, Linear {:.2g} "
+      const Scalar corotational = imbalance_after_two_steps<Corotational>(dt, kind);
+      const Scalar neo_hookean = imbalance_after_two_steps<NeoHookean>(dt, kind);
+      const Scalar linear = imbalance_after_two_steps<Linear>(dt, kind);
+      fmt::print("two steps of dt = {:g} ({}): |r| / |f_ext| Corotational {:.2g}, NeoHookean {:.2g}, Linear {:.2g} "
                  "(-1: refused)\n",
                  dt, kind == LinearSolverKind::Direct ? "direct" : "CG", corotational, neo_hookean, linear);
       CHECK((corotational >= 0 && corotational <= bound));
       CHECK((linear >= 0 && linear <= bound));
-      // Neo-Hookean at dt = 1000 is a static solve of a deflection three times the bar's length
-      // (q L^4 / 8 E I = 12.6) under twice the load (the step balances M a_n too), in one
+      // Neo-Hookean at dt >= 100 is a static solve of a deflection three times the bar's length
+      // (q L^4 / 8 E I = 12.6) under up to twice the load (the step balances M a_n too), in one
       // increment: Newton from the predictor inverts elements, from u_n it creeps (|r| down 1% per
-      // iteration), and 64 sub-steps of 15.6 are still ten periods each. Refused, state unchanged.
-      if (dt <= 100) CHECK((neo_hookean >= 0 && neo_hookean <= bound));
+      // iteration), and 64 sub-steps of 15.6 are still ten periods each. Measured: refused at the
+      // first step of 1000 and the second of 100, the state unchanged.
+      if (dt <= 10) CHECK((neo_hookean >= 0 && neo_hookean <= bound));
       else CHECK((neo_hookean == -1 || (neo_hookean >= 0 && neo_hookean <= bound)));
     }
   }

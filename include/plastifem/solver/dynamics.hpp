@@ -259,8 +259,7 @@ class Dynamics {
         fail<SolverError>("Newmark step at t = {}: the current state cannot be evaluated{}; the state is unchanged", t1,
                           where_invalid(p, n.u));
     }
-    const bool remembered = committed_scale_.state != 0 && committed_scale_.state == n.serial;
-    if (balanced) start_scale_ = remembered ? committed_scale_.scale : -1;
+    if (balanced) start_scale_ = n.force_scale;
   }
   /// The start state's force scale: start_scale_, or balance_scale the first time it is asked
   /// for (a step that needs none, real-time or a linear model's within tolerance, pays nothing).
@@ -283,9 +282,6 @@ class Dynamics {
     }
     return scale;
   }
-  /// Records that the state stored with `serial` has force scale `scale` (its last residual's:
-  /// the next step from it starts from this instead of balance_scale).
-  void remember_scale(std::uint64_t serial, Scalar scale) { committed_scale_ = {serial, scale}; }
 
   /// Generalized-alpha: h_n = (alpha_m M a_n + alpha_f (f_int(u_n) + D v_n - f_ext(t_n))) / (1 - alpha_f)
   /// (solver/newmark.hpp), the step's fixed share of the balance; f_int_n = f_int(u_n). Uses rhs_
@@ -455,6 +451,7 @@ class Dynamics {
       res = newton(frozen, u_, o, ResidualBacktracking{}, du_, u_new_);
     }
     res.exact_tangent_dropped = use_exact(st) && prob.kind == TangentKind::Projected;
+    Scalar final_scale = -1;  // the accepted iterate's own (MotionState::force_scale), if evaluated
     if (res.convergence == Convergence::OneSolve) {
       // A linear model's one solve: Newton reported the predictor's residual (relative 5.5e-2 on
       // a bar under gravity; found by review). The residual is linear in u, r(u + du) = r(u) +
@@ -488,10 +485,10 @@ class Dynamics {
         res.residual = more.residual, res.relative_residual = more.relative_residual, res.scale = more.scale;
         res.converged = more.converged;
         res.convergence = more.convergence;
-        if (more.converged) remember_scale(serial, prob.scale());
+        if (more.converged) final_scale = prob.scale();
       }
     } else if (res.converged) {
-      remember_scale(serial, prob.scale());
+      final_scale = prob.scale();
     }
     const Scalar t1 = n.t + dt;
     if (!res.converged)
@@ -501,7 +498,7 @@ class Dynamics {
     kinematics(p, n, nm, u_);
     if (!u_.allFinite() || !v_.allFinite() || !a_.allFinite())
       fail<SolverError>("Newmark step at t = {} produced non-finite values; the state is unchanged", t1);
-    store(p, n, trial, dt, serial);
+    store(p, n, trial, dt, serial, final_scale);
     StepReport rep;
     record(rep, res);
     rep.path_jumps = path_jumps_;
@@ -518,8 +515,9 @@ class Dynamics {
   };
 
   /// Moves u_, v_, a_ and the step's data into the trial state.
-  void store(const Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial,
+  void store(const Parts& p, const StateT& n, StateT& trial, Scalar dt, std::uint64_t serial, Scalar force_scale,
              bool keep_previous_start = false) {
+    trial.force_scale = force_scale;
     trial.u.swap(u_);
     trial.v.swap(v_);
     trial.a.swap(a_);
@@ -639,8 +637,7 @@ class Dynamics {
     const Scalar rnorm = dynamic_residual(p, n, nm, u_, f_int_, f_ext_norm, scale);
     if (!v_.allFinite() || !a_.allFinite())
       fail<SolverError>("real-time step at t = {} produced non-finite values; the state is unchanged", t1);
-    store(p, n, trial, dt, serial, true);
-    remember_scale(serial, scale);
+    store(p, n, trial, dt, serial, scale, true);
     f_lin_.swap(f_int_);
     linearisation_ = Linearisation::at(p, serial, next_kind);  // the trial state's, if it is committed
     StepReport rep;
@@ -734,11 +731,6 @@ class Dynamics {
   };
   Linearisation linearisation_;
   Scalar start_scale_ = -1;  ///< the force scale of the step's start state (start_step); -1: not known yet
-  /// The force scale of the state last stored (its serial): the last residual's, evaluated there.
-  struct {
-    std::uint64_t state = 0;  // 0: none (serials start at 1)
-    Scalar scale = 0;
-  } committed_scale_;
   /// The displacement a real-time step last assembled the system's K at, and that K (its state
   /// unused); recorded only with NewmarkSettings::tangent_reach.
   Vector tangent_u_;

@@ -170,6 +170,7 @@ void Solver<E, Elastic, Plastic, Enrich>::set_acceleration(const Vector& a) {
   if (a.size() != num_dofs() || !a.allFinite()) fail<InvalidArgument>("acceleration needs {} finite entries", num_dofs());
   current_.a = a;
   current_.balance = parts().balance();
+  current_.force_scale = -1;  // the step that made it measured another acceleration
 }
 
 template <FiniteElement E, class Elastic, class Plastic, class Enrich>

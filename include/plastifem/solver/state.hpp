@@ -14,6 +14,9 @@
 //              the constraints, the mass or the damping needs no one to remember to forget a;
 //   load       the external force the state is balanced with, statically or with M a + D v
 //              (statics continue from it, or from f_int(u) for a state in motion);
+//   force_scale the largest term of that balance over the free dofs, as the step that made the
+//              state evaluated it (-1: not known); the next accurate step's Newton measures its
+//              residual against at least this (solver/dynamics.hpp);
 //   warm_start the first Newton increment of the last step and its dt (the next step's CG
 //              start), and in real-time mode the one before (linear extrapolation of the two,
 //              when both steps had the current dt: 7-13% fewer CG iterations);
@@ -51,6 +54,7 @@ struct MotionState {
   Scalar t = 0;
   std::optional<Balance> balance;  ///< what a balances (none, or not the solver's now: solved from equilibrium)
   Vector load;
+  Scalar force_scale = -1;
   Vector warm_start, warm_start_previous;
   Scalar warm_dt = 0, warm_dt_previous = 0;
   std::uint64_t serial = 0;
@@ -64,6 +68,7 @@ struct MotionState {
     warm_start.resize(0), warm_start_previous.resize(0);
     warm_dt = warm_dt_previous = 0;
     t = 0;
+    force_scale = -1;
     balance.reset();
   }
   /// Grows to n dofs with zeros in the new entries (the dof map grew).
@@ -81,7 +86,7 @@ struct MotionState {
   /// Assignment that reuses this state's storage (no allocation when the sizes match).
   void assign_motion(const MotionState& o) {
     u = o.u, v = o.v, a = o.a, t = o.t, balance = o.balance;
-    load = o.load, warm_start = o.warm_start, warm_start_previous = o.warm_start_previous;
+    load = o.load, force_scale = o.force_scale, warm_start = o.warm_start, warm_start_previous = o.warm_start_previous;
     warm_dt = o.warm_dt, warm_dt_previous = o.warm_dt_previous, serial = o.serial;
     lineage = o.lineage;
   }
@@ -90,6 +95,7 @@ struct MotionState {
     warm_start_previous.swap(o.warm_start_previous);
     std::swap(warm_dt, o.warm_dt), std::swap(warm_dt_previous, o.warm_dt_previous);
     std::swap(t, o.t), std::swap(balance, o.balance), std::swap(serial, o.serial);
+    std::swap(force_scale, o.force_scale);
     std::swap(lineage, o.lineage);
   }
   /// Every field equal, bit for bit (NaN payloads aside).
@@ -98,7 +104,7 @@ struct MotionState {
       return p.size() == q.size() && std::equal(p.data(), p.data() + p.size(), q.data());
     };
     return same(u, y.u) && same(v, y.v) && same(a, y.a) && t == y.t && balance == y.balance &&
-           same(load, y.load) && same(warm_start, y.warm_start) && same(warm_start_previous, y.warm_start_previous) &&
+           same(load, y.load) && force_scale == y.force_scale && same(warm_start, y.warm_start) && same(warm_start_previous, y.warm_start_previous) &&
            warm_dt == y.warm_dt && warm_dt_previous == y.warm_dt_previous && serial == y.serial &&
            lineage == y.lineage;
   }

@@ -86,6 +86,7 @@ class Statics {
     state.a.setZero();
     state.balance = p.balance();
     state.load = f_target_;
+    state.force_scale = -1;  // f_int = load: the next step's balance_scale finds |load|
     state.warm_start.resize(0);
     rep.load_steps = increments;
     rep.wall_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
