@@ -443,16 +443,15 @@ class Dynamics {
     // whole step unless asked otherwise; the exact one while Newton converges fast (every
     // iteration reducing |r| by 10 or more), else refreshed (solver/newton.hpp).
     NewtonResult res;
-    if (use_exact(st) || !st.newton.tangent_once_per_step) {
-      o.refresh_ratio = st.newton.tangent_once_per_step ? 0.1 : 0.0;
-      res = newton(prob, u_, o, ResidualBacktracking{}, du_, u_new_);
-    } else {
-      FrozenTangent<Problem> frozen{prob};
-      res = newton(frozen, u_, o, ResidualBacktracking{}, du_, u_new_);
-    }
-    res.exact_tangent_dropped = use_exact(st) && prob.kind == TangentKind::Projected;
     Scalar final_scale = -1;  // the accepted iterate's own (MotionState::force_scale), if evaluated
-    if (res.convergence == Convergence::OneSolve) {
+    // Newton on `problem` (the frozen tangent's copy, or prob itself: the scale and the first
+    // increment are the object's that ran).
+    auto run_newton = [&](auto& problem) {
+      res = newton(problem, u_, o, ResidualBacktracking{}, du_, u_new_);
+      if (res.convergence != Convergence::OneSolve) {
+        if (res.converged) final_scale = problem.scale();
+        return;
+      }
       // A linear model's one solve: Newton reported the predictor's residual (relative 5.5e-2 on
       // a bar under gravity; found by review). The residual is linear in u, r(u + du) = r(u) +
       // A du = A du - b, which CG tracks to its end (relative to |b| = |r(u)|); after a direct
@@ -473,23 +472,29 @@ class Dynamics {
       auto within = [&](Scalar scale) {
         return res.residual <= o.tolerance * std::max(prob.f_ext_norm, scale) || res.residual <= o.absolute_tolerance;
       };
-      if (!within(start_scale_) && !within(start_scale(p, n))) {
-        o.reference_scale = std::max(prob.f_ext_norm, start_scale_);
-        o.verify_one_solve = true;
-        o.min_iterations = 0;
-        const NewtonResult more = newton(prob, u_, o, ResidualBacktracking{}, du_, u_new_);
-        res.iterations += more.iterations;
-        res.linear_iterations += more.linear_iterations;
-        res.linear_converged = res.linear_converged && more.linear_converged;
-        res.linear_relative_residual = more.linear_relative_residual;
-        res.residual = more.residual, res.relative_residual = more.relative_residual, res.scale = more.scale;
-        res.converged = more.converged;
-        res.convergence = more.convergence;
-        if (more.converged) final_scale = prob.scale();
-      }
-    } else if (res.converged) {
-      final_scale = prob.scale();
+      if (within(start_scale_) || within(start_scale(p, n))) return;
+      o.reference_scale = std::max(prob.f_ext_norm, start_scale_);
+      o.verify_one_solve = true;
+      o.min_iterations = 0;
+      const NewtonResult more = newton(problem, u_, o, ResidualBacktracking{}, du_, u_new_);
+      res.residual = more.residual, res.relative_residual = more.relative_residual, res.scale = more.scale;
+      res.converged = more.converged;
+      if (more.converged) final_scale = problem.scale();
+      if (more.iterations == 0) return;  // the solution met its own scale: still one solve
+      res.iterations += more.iterations;
+      res.linear_iterations += more.linear_iterations;
+      res.linear_converged = res.linear_converged && more.linear_converged;
+      res.linear_relative_residual = more.linear_relative_residual;
+      res.convergence = more.convergence;
+    };
+    if (use_exact(st) || !st.newton.tangent_once_per_step) {
+      o.refresh_ratio = st.newton.tangent_once_per_step ? 0.1 : 0.0;
+      run_newton(prob);
+    } else {
+      FrozenTangent<Problem> frozen{prob};
+      run_newton(frozen);
     }
+    res.exact_tangent_dropped = use_exact(st) && prob.kind == TangentKind::Projected;
     const Scalar t1 = n.t + dt;
     if (!res.converged)
       fail<SolverError>("Newmark step at t = {} did not converge in {} Newton iterations (|r| = {:.3g}, relative "

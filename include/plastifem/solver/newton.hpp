@@ -85,7 +85,8 @@ struct NewtonOptions {
   Scalar max_scale_growth = 1e3;
   /// If > 0, the force scale of the state the solve starts from (dynamics: the committed
   /// state's, Dynamics::start_step). The scale at an iterate is then this raised to the
-  /// iterate's own, at most max_scale_growth times this, with no running maximum: at a dt far
+  /// iterate's own, at most max_scale_growth times this or the first iterate's (a start state
+  /// at rest under no load has a round-off scale), with no running maximum: at a dt far
   /// beyond the body's lowest period the predictor's forces are (omega dt)^2 times the
   /// physical ones, and a scale that kept them accepted states far from equilibrium (Hex8
   /// 4x1x1 bar under gravity, first period 1.8 s, dt = 10: |M a + f_int - f_ext| = 0.40 |f_ext|
@@ -209,8 +210,10 @@ NewtonResult newton(Problem& p, Vector& u, const NewtonOptions& o, const Search&
   // the first) raised to the iterate's own, which may exceed the first iterate's at most
   // max_scale_growth times (with the running maximum).
   auto scale_from = [&](Scalar previous) {
-    if (o.reference_scale > 0)
-      return std::max({o.reference_scale, std::min(p.scale(), o.max_scale_growth * o.reference_scale), Scalar(1e-30)});
+    if (o.reference_scale > 0) {
+      const Scalar cap = o.max_scale_growth * std::max(o.reference_scale, first_scale);
+      return std::max({o.reference_scale, std::min(p.scale(), cap), Scalar(1e-30)});
+    }
     const Scalar own = o.running_max_scale ? std::min(p.scale(), o.max_scale_growth * first_scale) : p.scale();
     return std::max({previous, own, Scalar(1e-30)});
   };
