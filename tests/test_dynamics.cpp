@@ -394,17 +394,17 @@ TEST_CASE("convergence scale: a step far beyond the lowest period is balanced to
       const Scalar corotational = imbalance_after_two_steps<Corotational>(dt, kind);
       const Scalar neo_hookean = imbalance_after_two_steps<NeoHookean>(dt, kind);
       const Scalar linear = imbalance_after_two_steps<Linear>(dt, kind);
-      // No exact tangent: the frozen-tangent Newton, whose scale the state stores as well.
+      // No exact tangent: Newton on the warped tangent, refreshed where |r| stalls.
       const Scalar per_element = imbalance_after_two_steps<CorotationalPerElement>(dt, kind);
       fmt::print("two steps of dt = {:g} ({}): |r| / |f_ext| Corotational {:.2g}, per element {:.2g}, NeoHookean "
                  "{:.2g}, Linear {:.2g} (-1: refused)\n",
                  dt, kind == LinearSolverKind::Direct ? "direct" : "CG", corotational, per_element, neo_hookean, linear);
       CHECK((corotational >= 0 && corotational <= bound));
-      // CorotationalPerElement has no exact tangent: its Newton keeps the warped tangent
-      // assembled at the predictor (490 m from the solution at dt = 10), and from dt = 10 on it
-      // does not converge in 50 iterations nor in 64 sub-steps. Refused, state unchanged.
-      if (dt <= 1) CHECK((per_element >= 0 && per_element <= bound));
-      else CHECK((per_element == -1 || (per_element >= 0 && per_element <= bound)));
+      // CorotationalPerElement has no exact tangent. Its warped tangent, assembled at the
+      // predictor (490 m from the solution at dt = 10) and kept for the whole step, diverged
+      // from dt = 10 on (|r| ~ 1e146 after 50 iterations; refused) and took 204 iterations for
+      // the two steps of dt = 1; refreshed where an iteration does not halve |r|, 14-17.
+      CHECK((per_element >= 0 && per_element <= bound));
       CHECK((linear >= 0 && linear <= bound));
       // Neo-Hookean at dt >= 100 is a static solve of a deflection three times the bar's length
       // (q L^4 / 8 E I = 12.6) under up to twice the load (the step balances M a_n too), in one

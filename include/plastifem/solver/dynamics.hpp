@@ -275,7 +275,7 @@ class Dynamics {
     Scalar scale = n.load.size() == n.num_dofs() ? p.system.free_norm(n.load) : 0;
     p.system.M.multiply(n.a, work_, p.threads);
     scale = std::max(scale, p.system.free_norm(work_));
-    if (p.settings.rayleigh_mass != 0 || p.settings.rayleigh_stiffness != 0) {
+    if (has_rayleigh_damping(p.settings)) {
       rhs_.setZero();
       equation_.add_damping(p, n.v, 1.0, rhs_);
       scale = std::max(scale, p.system.free_norm(rhs_));
@@ -431,7 +431,8 @@ class Dynamics {
     // predictor's: at dt >> 1 / omega those are (omega dt)^2 times too large (NewtonOptions).
     // A linear model's one solve keeps the predictor's scale (the solve's tolerance is the same
     // as ever); its result is checked against the start state's below.
-    if (!constant_tangent) o.reference_scale = std::max(prob.f_ext_norm, start_scale(p, n));
+    auto reference_scale = [&] { return std::max(prob.f_ext_norm, start_scale(p, n)); };
+    if (!constant_tangent) o.reference_scale = reference_scale();
     // Backtracking needs a descent direction for |r|, which only the exact Jacobian guarantees:
     // with the warped corotational tangent it mostly fails and costs force evaluations (bar720
     // Tet4 Corotational: 9.2 ms per Newton iteration against 4.8 ms without), so without the
@@ -439,9 +440,13 @@ class Dynamics {
     // keeps the search: for the ln J energies it is what rejects a trial step that inverts an
     // element.
     o.line_search = st.newton.line_search && use_exact(st);
-    // The tangent is assembled at the predictor. The warped (projected) one is kept for the
-    // whole step unless asked otherwise; the exact one while Newton converges fast (every
-    // iteration reducing |r| by 10 or more), else refreshed (solver/newton.hpp).
+    // The tangent is assembled at the predictor and kept while Newton converges fast enough,
+    // else refreshed at the iterate (solver/newton.hpp): the exact one while every iteration
+    // reduces |r| tenfold; the warped (projected) one, which converges linearly anyway, while
+    // |r| at least halves. A warped tangent kept for the whole step diverged at dt >> 1 / omega
+    // (CorotationalPerElement at dt = 10 on a bar of period 1.8: |r| ~ 1e146 after 50
+    // iterations, the predictor 490 m from the solution); refreshed where |r| stalls, it
+    // converges in about 10 iterations a step at any dt.
     NewtonResult res;
     Scalar final_scale = -1;  // the accepted iterate's own (MotionState::force_scale), if evaluated
     // Newton on `problem` (the frozen tangent's copy, or prob itself: the scale and the first
@@ -470,10 +475,11 @@ class Dynamics {
       // 0.54 |f_ext|). Short of the tolerance of the start state's scale, Newton goes on from
       // the solution, checking each residual against its own scale.
       auto within = [&](Scalar scale) {
-        return res.residual <= o.tolerance * std::max(prob.f_ext_norm, scale) || res.residual <= o.absolute_tolerance;
+        return res.residual <= o.tolerance * scale || res.residual <= o.absolute_tolerance;
       };
-      if (within(start_scale_) || within(start_scale(p, n))) return;
-      o.reference_scale = std::max(prob.f_ext_norm, start_scale_);
+      // |f_ext| and a scale already known first: the start state's costs a mass product.
+      if (within(std::max(prob.f_ext_norm, start_scale_)) || within(reference_scale())) return;
+      o.reference_scale = reference_scale();
       o.verify_one_solve = true;
       o.min_iterations = 0;
       const NewtonResult more = newton(problem, u_, o, ResidualBacktracking{}, du_, u_new_);
@@ -487,12 +493,12 @@ class Dynamics {
       res.linear_relative_residual = more.linear_relative_residual;
       res.convergence = more.convergence;
     };
-    if (use_exact(st) || !st.newton.tangent_once_per_step) {
-      o.refresh_ratio = st.newton.tangent_once_per_step ? 0.1 : 0.0;
-      run_newton(prob);
-    } else {
+    if (constant_tangent && st.newton.tangent_once_per_step) {
       FrozenTangent<Problem> frozen{prob};
       run_newton(frozen);
+    } else {
+      if (st.newton.tangent_once_per_step) o.refresh_ratio = use_exact(st) ? 0.1 : 0.5;
+      run_newton(prob);
     }
     res.exact_tangent_dropped = use_exact(st) && prob.kind == TangentKind::Projected;
     const Scalar t1 = n.t + dt;
@@ -511,8 +517,8 @@ class Dynamics {
     return rep;
   }
 
-  /// A problem whose tangent, once assembled at the step's first iterate, stays: the warped
-  /// tangent's change over one step is far smaller than the dR/dx it omits anyway.
+  /// A problem whose tangent, once assembled at the step's first iterate, stays: a linear
+  /// model's, which does not depend on u.
   template <class P>
   struct FrozenTangent : P {
     explicit FrozenTangent(P& problem) : P(problem) {}

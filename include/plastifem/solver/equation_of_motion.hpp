@@ -123,7 +123,7 @@ class EquationOfMotion {
     } else {
       r = f_int - f_ext;
     }
-    if (m.v && (s.rayleigh_mass != 0 || s.rayleigh_stiffness != 0)) {
+    if (m.v && has_rayleigh_damping(s)) {
       damping.setZero(n);
       add_rayleigh_damping(system.M, Kd, s, *m.v, 1.0, damping, work, threads);
       norms.largest_term = std::max(norms.largest_term, system.free_norm(damping));

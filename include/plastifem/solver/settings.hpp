@@ -34,13 +34,14 @@ struct NewtonSettings {
   /// the projected one (for Corotational the warped R K0 R^T, SOFA's and VegaFEM's choice).
   bool exact_tangent = true;
   /// Assemble the tangent once per Newmark step, at the predictor, and use force-only
-  /// evaluations in the later iterations: always for the projected tangent (the warped tangent
-  /// already omits dR/dx, and the step's motion changes it far less than that; bar5760 Hex8
-  /// Corotational: the same 1.9 Newton iterations per step with a third fewer element-matrix
-  /// evaluations); for the exact tangent while each iteration reduces |r| tenfold or more,
-  /// refreshed at the iterate where one does not (bar90 Hex8 Corotational: the same 1.6 Newton
-  /// iterations per step, 1.0 instead of 1.6 tangent assemblies, 0.49 -> 0.38 ms). false: a
-  /// fresh tangent at every iterate that failed the convergence test.
+  /// evaluations in the later iterations while Newton converges: for the projected tangent
+  /// while each iteration at least halves |r| (the warped tangent already omits dR/dx, and the
+  /// step's motion changes it far less than that; bar5760 Hex8 Corotational: the same 1.9
+  /// Newton iterations per step with a third fewer element-matrix evaluations); for the exact
+  /// tangent while each iteration reduces |r| tenfold or more (bar90 Hex8 Corotational: the
+  /// same 1.6 Newton iterations per step, 1.0 instead of 1.6 tangent assemblies, 0.49 -> 0.38
+  /// ms). An iteration short of that refreshes the tangent at its iterate. false: a fresh
+  /// tangent at every iterate that failed the convergence test.
   bool tangent_once_per_step = true;
 };
 

@@ -35,6 +35,9 @@ inline void note_unused_nodes(const MeshReport& report) {
                    unused.size() == 1 ? "is" : "are"));
 }
 
+/// Whether the settings damp the motion: D = alpha M + beta Kd is not zero.
+inline bool has_rayleigh_damping(const SolverSettings& s) { return s.rayleigh_mass != 0 || s.rayleigh_stiffness != 0; }
+
 /// out += factor D v with Rayleigh damping D = alpha M + beta Kd (seed 001 eq. 20; s.rayleigh_mass =
 /// alpha, s.rayleigh_stiffness = beta; solver/dynamics.hpp says at which state Kd is taken).
 /// The one damping product of the step, its start and the reactions. `work`: scratch, not `out`.
