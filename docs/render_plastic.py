@@ -142,11 +142,15 @@ def main():
         if c == len(columns) - 1:
             bar = vtk.vtkScalarBarActor()
             bar.SetLookupTable(lut)
-            bar.SetTitle("|%s|" % field)
+            bar.SetTitle(field.replace("_", "\n"))  # its magnitude, one word per line: it fits the margin
             bar.SetNumberOfLabels(3)
             bar.SetWidth(0.12)
             bar.SetHeight(0.5)
-            bar.SetPosition(0.86, 0.25)
+            bar.SetPosition(0.84, 0.25)
+            # Fixed font sizes: scaled to the bar's width, the title came out unreadably small.
+            bar.UnconstrainedFontSizeOn()
+            bar.GetTitleTextProperty().SetFontSize(14)
+            bar.GetLabelTextProperty().SetFontSize(13)
             bar.GetTitleTextProperty().SetColor(0, 0, 0)
             bar.GetLabelTextProperty().SetColor(0, 0, 0)
             renderer.AddActor2D(bar)

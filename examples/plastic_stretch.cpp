@@ -7,14 +7,14 @@
 //   neohookean    E = 3000, nu = 0.45, force 1000: (tau, nu) = (1500, 0.25), (1800, 0.2), (2000, 0.15)
 // with isotropic hardening kappa = 0.2.
 //
-// Stress scale. With the physical (second Piola-Kirchhoff, von Mises) stress these loads stay
-// elastic: the stress in the loaded bar is 36-39 for the corotational scene (force 350 on a
-// 3 x 3 face) and 97-106 for the Neo-Hookean one (force 1000), against yield stresses of
-// 1000-2000 (a point force at the face's centre raises the largest to 64 and 170, still far
-// below). The example multiplies the stress by a scale (PlasticParams::stress_scale;
-// --stress-scale) to put the paper's parameter sets in the regime its figures show: 50 for the
-// corotational sets, 25 for the Neo-Hookean ones (printed with the results). Set
-// --stress-scale 1 for the physical stress.
+// Stress scale. With the physical stress (the von Mises norm of the flow stress,
+// plastic/flow.hpp) these loads stay elastic: the stress in the loaded bar is 36-39 for the
+// corotational scene (force 350 on a 3 x 3 face) and 97-106 for the Neo-Hookean one (force 1000),
+// against yield stresses of 1000-2000 (a point force at the face's centre raises the largest to
+// 64 and 170, still far below). The example multiplies the stress by a scale
+// (PlasticParams::stress_scale; --stress-scale) to put the paper's parameter sets in the regime
+// its figures show: 50 for the corotational sets, 25 for the Neo-Hookean ones (printed with the
+// results). Set --stress-scale 1 for the physical stress.
 //
 //   plastic_stretch [--model corotational|neohookean] [--element hex8|tet4|tet10]
 //                   [--policy vertex-blended|cell-centered] [--set 1|2|3|all] [--level 0|1|2]

@@ -84,34 +84,29 @@ struct BasicNeoHookeanEnergy {
     U = 0.5 * lambda * l * l, dU = lambda * l / J, ddU = lambda * (1 - l) / (J * J);
     return true;
   }
-  /// The second Piola-Kirchhoff stress of the whole energy (deviatoric + volumetric parts),
-  /// S = F^-1 P = mu (I - C^-1) + lambda ln J C^-1, in closed form: the plastic flow's stress
-  /// (plastic/flow.hpp) at a third of the cost of F^-1 P. false where J <= 0.
-  bool second_piola(const M3& F, M3& S) const {
+  /// The Mandel stress of the whole energy (deviatoric + volumetric parts), M = C S = F^T P
+  /// = mu (C - I) + lambda ln J I, in closed form: the plastic flow's stress (plastic/flow.hpp)
+  /// without P's cofactor. false where J <= 0.
+  bool mandel_stress(const M3& F, M3& M) const {
     const T J = F.determinant();
     if (!(J > 0)) return false;
-    const M3 C = F.transpose() * F;
-    const M3 Cinv = detail::cofactor(C) / (J * J);  // C symmetric: cof(C) = cof(C)^T; det C = J^2
-    S = (lambda * std::log(J) - mu) * Cinv;
-    S.diagonal().array() += mu;
+    M = mu * (F.transpose() * F);
+    M.diagonal().array() += lambda * std::log(J) - mu;
     return true;
   }
-  /// |dev S|^2 for that S at Q points at once (the plastic yield check, plastic/flow.hpp; one
-  /// SIMD lane per point, F component-wise): dev S = (lambda ln J - mu) dev(C^-1)
-  /// = (lambda ln J - mu) dev(cof C) / J^2. NaN where J <= 0.
+  /// |dev M|^2 = mu^2 |dev C|^2 for that M at Q points at once (the plastic yield check,
+  /// plastic/flow.hpp; one SIMD lane per point, F component-wise). NaN where J <= 0, where the
+  /// energy is undefined.
   template <int Q>
-  PointArray<Q> deviatoric_second_piola_norm2(const PointMat3<Q>& F) const {
+  PointArray<Q> deviatoric_mandel_norm2(const PointMat3<Q>& F) const {
     using PA = PointArray<Q>;
     const PA J = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) + F[6] * (F[1] * F[5] - F[4] * F[2]);
     auto dot = [&](int c, int d) -> PA { return F[3 * c] * F[3 * d] + F[3 * c + 1] * F[3 * d + 1] + F[3 * c + 2] * F[3 * d + 2]; };
     const PA C00 = dot(0, 0), C11 = dot(1, 1), C22 = dot(2, 2), C01 = dot(0, 1), C02 = dot(0, 2), C12 = dot(1, 2);
-    const PA K00 = C11 * C22 - C12 * C12, K11 = C00 * C22 - C02 * C02, K22 = C00 * C11 - C01 * C01;
-    const PA K01 = C02 * C12 - C01 * C22, K02 = C01 * C12 - C02 * C11, K12 = C01 * C02 - C00 * C12;
-    const PA mean = (K00 + K11 + K22) / 3;
-    const PA dev2 = (K00 - mean).square() + (K11 - mean).square() + (K22 - mean).square() +
-                    2 * (K01.square() + K02.square() + K12.square());
-    const PA a = (lambda * J.max(PA::Constant(std::numeric_limits<Scalar>::min())).log() - mu) / (J * J);
-    return (J > 0).select(a.square() * dev2, PA::Constant(std::numeric_limits<Scalar>::quiet_NaN()));
+    const PA mean = (C00 + C11 + C22) / 3;
+    const PA dev2 = (C00 - mean).square() + (C11 - mean).square() + (C22 - mean).square() +
+                    2 * (C01.square() + C02.square() + C12.square());
+    return (J > 0).select((mu * mu) * dev2, PA::Constant(std::numeric_limits<Scalar>::quiet_NaN()));
   }
 };
 using NeoHookeanEnergy = BasicNeoHookeanEnergy<>;

@@ -13,17 +13,22 @@
 // average of equally near ones: Tet10's mid-edge nodes). Plastic rotation flows at the nodes
 // from Fbar_a for every model (the paper left it out for the hyperelastic model for speed).
 //
-// Stress. The second Piola-Kirchhoff stress S: the hyperelastic model's own, S = F^-1 P(F)
-// (for a MeanDilatation variant with its pressure U'(Jbar), Jbar the element's mean dilatation:
-// the point's own J carries the locked pressure the variant removes);
-// for the small-strain models the St Venant-Kirchhoff stress of the Green strain,
+// Stress. The paper's second Piola-Kirchhoff stress S, as the Mandel stress M = C S = F^T P,
+// which equals S to first order in the strain and whose deviator is free of the pressure at
+// any strain (dev S keeps p J dev(C^-1): a nearly incompressible body under 10% confined
+// compression read 40 times its shear stress; M's invariants are the Kirchhoff stress J sigma's,
+// the measure of finite-strain J2 plasticity, Simo 1992). The hyperelastic models' own: F^T P
+// of the law (for a MeanDilatation variant of its deviatoric energy, the element's pressure
+// having no deviator), mu (C - I) + lambda ln J I in closed form for the Neo-Hookean energy; for
+// the small-strain models the St Venant-Kirchhoff stress of the Green strain,
 // S = lambda tr(E) I + 2 mu E, E = (F^T F - I) / 2 ("we compute C = F^T F, E = (C - I)/2 and
 // the second Piola-Kirchhoff stress"): equal to their stress to first order in the strain,
 // and invariant under rotation, so that a rigidly rotated Linear element does not yield on its
-// ghost stress. Only the deviator enters: s = k dev(S) - alpha, with k the stress scale (1 by
-// default) and alpha the kinematic centre, and its von Mises norm |s| = sqrt(3/2 s:s). (The
-// paper writes sqrt(3/2 sigma:sigma); von Mises is the norm of the deviator, and with the
-// whole tensor a hydrostatic pressure would yield.)
+// ghost stress. Only the deviator enters: s = k dev(M) - alpha (dev S = 2 mu dev E for the
+// small-strain models), with k the stress scale (1 by default) and alpha the kinematic centre,
+// and its von Mises norm |s| = sqrt(3/2 s:s). (The paper writes sqrt(3/2 sigma:sigma); von
+// Mises is the norm of the deviator, and with the whole tensor a hydrostatic pressure would
+// yield.)
 //
 // Plastic stretch (eq. 4). With F = U D V^T (here from C = F^T F = V D^2 V^T, which needs no U
 // and is exact also for reflections):
@@ -54,7 +59,7 @@
 //
 // Hardening. Isotropic: tau += kappa gamma |s|, tau_R += kappa eta phi. Kinematic (reconstructed
 // so that it has the units of a stress, the paper's "alpha <- alpha + kappa gamma (sigma -
-// alpha)/|sigma - alpha|" does not): alpha += min(kappa_k gamma, 1) (k dev(S) - alpha), the
+// alpha)/|sigma - alpha|" does not): alpha += min(kappa_k gamma, 1) (k dev(M) - alpha), the
 // centre at most onto the stress.
 //
 // Rest-shape update (eq. 7-8). The plastic increment Fp = Rp Sp (the right factors of
@@ -171,38 +176,30 @@ inline bool isochoric_stretch_power(const Mat3& F, Scalar gamma, Mat3& Sp) {
   return true;
 }
 
-/// The deviator of the flow stress S at F (see the file comment); false where it is undefined
-/// (the hyperelastic energies with ln J at J <= 0). `Jbar`: the element's mean dilatation, read
-/// by the hyperelastic MeanDilatation variants only.
+/// The deviator of the flow stress at F (the Mandel stress F^T P of a hyperelastic model, 2 mu E
+/// of a small-strain one; see the file comment); false where it is undefined (the hyperelastic
+/// energies with ln J at J <= 0).
 template <class Elastic>
-bool deviatoric_flow_stress(const typename Elastic::Law& law, const Material& m, const Mat3& F, Scalar Jbar, Mat3& dev) {
-  Mat3 S;
+bool deviatoric_flow_stress(const typename Elastic::Law& law, const Material& m, const Mat3& F, Mat3& dev) {
+  Mat3 M;
   if constexpr (is_mean_dilatation_hyperelastic_v<Elastic>) {
-    // S = F^-1 (P_dev(F) + U'(Jbar) cof F): the stress the element's forces integrate (with the
-    // point's U'(J), a nearly incompressible cantilever's points yielded at |s| = 38,600 where
-    // the model's stress is 890 at most).
-    Scalar psi, U, dU, ddU;
+    // F^T (P_dev + U'(Jbar) cof F) = F^T P_dev + U'(Jbar) J I: the element's pressure (and the
+    // point's locked one, which the variant removes) has no deviator.
+    Scalar psi;
     Mat3 P;
-    const Scalar J = F.determinant();
-    if (!(std::abs(J) > 0) || !law.energy.deviatoric(F, psi, P, nullptr) || !law.energy.volumetric(Jbar, U, dU, ddU))
-      return false;
-    const Mat3 cof = detail::cofactor(F);
-    S = cof.transpose() * (P + dU * cof) / J;
-    S = 0.5 * (S + S.transpose());
-  } else if constexpr (requires { law.energy.second_piola(F, S); }) {
-    if (!law.energy.second_piola(F, S)) return false;  // a closed form (NeoHookeanEnergy)
+    if (!law.energy.deviatoric(F, psi, P, nullptr)) return false;
+    M = F.transpose() * P;
+  } else if constexpr (requires { law.energy.mandel_stress(F, M); }) {
+    if (!law.energy.mandel_stress(F, M)) return false;  // a closed form (NeoHookeanEnergy)
   } else if constexpr (is_hyperelastic_v<Elastic>) {
     Mat3 P;
     if (!std::isfinite(law.evaluate(F, P, nullptr))) return false;
-    const Scalar J = F.determinant();
-    if (!(std::abs(J) > 0)) return false;
-    S = detail::cofactor(F).transpose() * P / J;  // F^-1 P
-    S = 0.5 * (S + S.transpose());
+    M = F.transpose() * P;
   } else {
-    const Mat3 E = 0.5 * (F.transpose() * F - Mat3::Identity());
-    S = 2 * m.mu() * E;  // the lambda tr(E) I part has no deviator
+    M = m.mu() * (F.transpose() * F - Mat3::Identity());  // 2 mu E: the lambda tr(E) I part has no deviator
   }
-  dev = S - S.trace() / 3 * Mat3::Identity();
+  M = 0.5 * (M + M.transpose());  // symmetric in exact arithmetic for an isotropic law
+  dev = M - M.trace() / 3 * Mat3::Identity();
   return dev.allFinite();
 }
 
@@ -288,17 +285,6 @@ struct FlowGradients {
         dv[g] = pts.w_gauss[g] * det_J;
         volume += dv[g];
       }
-  }
-
-  /// Jbar = (1/V) sum_g dv_g det F_g over the Gauss points' F (the element's mean dilatation, as
-  /// the hyperelastic model computes it at the same points).
-  template <class Gradients>
-  Scalar mean_dilatation(const Gradients& F) const
-    requires Gauss
-  {
-    Scalar Jbar = 0;
-    for (int g = 0; g < Q; ++g) Jbar += dv[g] * F[g].determinant();
-    return Jbar / volume;
   }
 
   /// F = x dN/dX at Gauss point g (the Gauss flow).
@@ -418,24 +404,22 @@ class ElementFlow {
     if (!prm.stretch_active()) return false;
     if constexpr (gauss) {
       if constexpr (!is_mean_dilatation_hyperelastic_v<Elastic> &&
-                    requires { law.energy.template deviatoric_second_piola_norm2<P>(grad.gauss_gradients(x)); }) {
+                    requires { law.energy.template deviatoric_mandel_norm2<P>(grad.gauss_gradients(x)); }) {
         // All points at once (the energy's closed form, one SIMD lane per point). Conservative
         // by 1e-6 of tau^2: the batched arithmetic differs from run()'s in round-off, amplified
         // where the deviator is small against the whole stress (up to 5e-11 relative on random
         // F); a point this close to yield goes to run(), which decides.
         const PointArray<P> s2 =
-            (1.5 * prm.stress_scale * prm.stress_scale) * law.energy.template deviatoric_second_piola_norm2<P>(grad.gauss_gradients(x));
+            (1.5 * prm.stress_scale * prm.stress_scale) * law.energy.template deviatoric_mandel_norm2<P>(grad.gauss_gradients(x));
         for (int k = 0; k < P; ++k)
           if (!(s2[k] <= en.tau[k] * en.tau[k] * (1 - 1e-6))) return true;  // NaN: undefined, run() counts it
         return false;
       } else {
         std::array<Mat3, P> F;
         for (int k = 0; k < P; ++k) F[k] = grad.gauss_gradient(x, k);
-        Scalar Jbar = 1;
-        if constexpr (is_mean_dilatation_hyperelastic_v<Elastic>) Jbar = grad.mean_dilatation(F);
         for (int k = 0; k < P; ++k) {
           Mat3 dev;
-          if (!deviatoric_flow_stress<Elastic>(law, m, F[k], Jbar, dev)) return true;
+          if (!deviatoric_flow_stress<Elastic>(law, m, F[k], dev)) return true;
           if (von_mises_norm(prm.stress_scale * dev) > en.tau[k]) return true;
         }
         return false;
@@ -518,13 +502,11 @@ class ElementFlow {
     constexpr bool one_gradient = !gauss && constant_gradient;
     if (stretch) {
       bool defined = true;  // the stress at the last point that computed one
-      Scalar Jbar = 1;
-      if constexpr (is_mean_dilatation_hyperelastic_v<Elastic>) Jbar = grad.mean_dilatation(F_gauss);
       for (int k = 0; k < P; ++k) {
         const Mat3& F = F_point(k);
         if (!one_gradient || k == 0) {
           Mat3 dev;
-          defined = deviatoric_flow_stress<Elastic>(law, m, F, Jbar, dev);
+          defined = deviatoric_flow_stress<Elastic>(law, m, F, dev);
           if (defined) dev_scaled[k] = prm.stress_scale * dev;
         } else {
           dev_scaled[k] = dev_scaled[0];

@@ -11,8 +11,9 @@ namespace plastifem {
 
 struct PlasticParams {
   // --- plastic stretch (eq. 4) -------------------------------------------------------------
-  /// Yield stress tau: the von Mises norm of the (deviatoric, shifted) second Piola-Kirchhoff
-  /// stress above which the material flows. >= 0; +inf: no plastic stretch.
+  /// Yield stress tau: the von Mises norm of the (deviatoric, shifted) flow stress, the second
+  /// Piola-Kirchhoff stress as the Mandel stress C S (plastic/flow.hpp), above which the
+  /// material flows. >= 0; +inf: no plastic stretch.
   Scalar yield_stress = 1000;
   /// Flow rate nu, per unit time, in [0, 1]: gamma = min(nu dt (|s| - tau) / |s|, 1) is the
   /// fraction of the current isochoric stretch that becomes plastic in a step of dt.
@@ -77,7 +78,7 @@ struct PlasticParams {
     };
     check(yield_stress >= 0 && !std::isnan(yield_stress), "yield_stress (tau)", yield_stress, ">= 0, or +inf for none");
     check(flow_rate >= 0 && flow_rate <= 1, "flow_rate (nu)", flow_rate, "in [0, 1], per unit time");
-    // The yield test squares stress_scale x the stress (|s|^2 = 3/2 |scale dev S|^2): at 1e300
+    // The yield test squares stress_scale x the stress (|s|^2 = 3/2 |scale dev M|^2): at 1e300
     // that is inf for any stress, every point "yields" with gamma = nu dt (inf - tau) / inf =
     // NaN, and nothing flows. Up to 1e100 the square stays finite (below 1.8e308) for stresses
     // up to 1e50 in the user's units, beyond any material's (steel's modulus is 2e11 Pa).
