@@ -147,7 +147,8 @@ TEST_CASE("Mooney-Rivlin material: Abaqus' constants come back, bad ones are ref
   };
   CHECK(refused(100, -100, 1e-3));  // mu = 0
   CHECK(refused(-200, 100, 1e-3));  // mu < 0
-  CHECK(refused(100, 50, 0));
+  // D1 = 0, Abaqus' incompressible material, is refused with what to give instead.
+  CHECK(error_of([] { Material::from_mooney_rivlin(100, 50, 0, 1); }).find("give D1 = 2 / K") != std::string::npos);
   CHECK(refused(100, 50, -1e-3));
   CHECK(refused(nan, 50, 1e-3));
   CHECK(refused(100, nan, 1e-3));

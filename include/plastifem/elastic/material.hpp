@@ -45,12 +45,19 @@ struct Material {
   /// (CalculiX's too): mu = 2 (C10 + C01), K = 2 / D1 as from_abaqus, and c01_share =
   /// C01 / (C10 + C01). The MooneyRivlin model reproduces the energy (to round-off of the
   /// E, nu round trip); every other model sees the same small-strain E and nu. Needs
-  /// C10 + C01 > 0 and D1 > 0, all finite. One of C10, C01 may be negative, as Abaqus allows:
-  /// the material is then stable at small strain (mu > 0, K > 0) but may lose Drucker
-  /// stability at large ones. That is not checked here: it is the user's. (The solver's
-  /// tangent is projected to positive semi-definite per point, so its linear solves stay
-  /// defined, but where the energy is not convex a body can snap or have no equilibrium near.)
+  /// C10 + C01 > 0 and D1 > 0, all finite (D1 = 0, Abaqus' incompressible material, has no
+  /// displacement-only form: take D1 = 2 / K with K 100 to 500 times mu). One of C10, C01 may
+  /// be negative, as Abaqus allows: the material is then stable at small strain (mu > 0,
+  /// K > 0) but may lose Drucker stability at large ones. With C01 < 0 the incompressible
+  /// equibiaxial stress 2 (l^2 - l^-4)(C10 + l^2 C01) peaks before l = sqrt(C10 / -C01) and then
+  /// falls. That is not checked here: it is the user's. (The solver's tangent is projected to
+  /// positive semi-definite per point, so its linear solves stay defined, but where the energy
+  /// is not convex a body can snap or have no equilibrium near.)
   static Material from_mooney_rivlin(Scalar C10, Scalar C01, Scalar D1, Scalar density) {
+    if (D1 == 0)
+      fail<InvalidArgument>("Abaqus Mooney-Rivlin constants: D1 = 0 (incompressible) has no displacement-only form; "
+                            "give D1 = 2 / K with a bulk modulus K of 100 to 500 times mu = 2 (C10 + C01) = {}",
+                            2 * (C10 + C01));
     if (!std::isfinite(C10) || !std::isfinite(C01) || !(C10 + C01 > 0) || !(D1 > 0) || !std::isfinite(D1))
       fail<InvalidArgument>("Abaqus Mooney-Rivlin constants need C10 + C01 > 0 and D1 > 0 (finite), got C10 = {}, "
                             "C01 = {}, D1 = {}",
