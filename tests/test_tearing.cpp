@@ -414,6 +414,9 @@ TEST_CASE("tearing: bad settings and crack paths are refused", "[tearing]") {
   CHECK_THROWS_AS(t.start({Vec3(1, 1, 0), Vec3(std::nan(""), 1, 0)}), InvalidArgument);
   CHECK_THROWS_AS(t.start({Vec3(1, 1, 0), Vec3(1, 1, 0)}), InvalidArgument);
   CHECK(!t.started());
+  // A short sweep vector is a direction all the same (Eigen's isZero took any vector of
+  // components below 1e-12 for "none" and put the thinnest axis, z here, in its place).
+  CHECK(Tearing<S>(s, tear(30, Vec3(1e-13, 0, 0))).sweep() == Vec3::UnitX());
   // Unloaded: nothing tears.
   const TearReport r = t.update();
   CHECK(!r.started);

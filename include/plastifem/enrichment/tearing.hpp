@@ -30,7 +30,9 @@
 //    the centre stresses of the uncut elements around node a: B's own centre lies off the line,
 //    on one side of the tip's field, and its principal direction leans (25 degrees ahead of a
 //    notch in a test). If that sigma_1 reaches the strength, the path gains the point where the
-//    line along B's d (from the recovered stress, turned to go on forward) leaves B. The opening
+//    line along B's d leaves B: d from the principal direction of the stress averaged around the
+//    tip (the centre stresses of the uncut elements near it, Gaussian-weighted by distance),
+//    turned to go on forward. The opening
 //    follows one element behind the path's tip, as above.
 //  - One element per tip per update: the crack runs at most an element per step (the stresses
 //    are those of the step just solved; the next solve redistributes them).
@@ -90,7 +92,7 @@ class Tearing {
   Tearing(S& solver, TearingSettings settings) : solver_(&solver), settings_(settings), locator_(solver.mesh()) {
     settings_.validate();
     const Eigen::Matrix3Xd& X = solver.mesh().nodes();
-    if (settings_.sweep.isZero()) {
+    if (settings_.sweep == Vec3::Zero()) {  // exactly: any other vector is a direction
       const Vec3 extent = X.rowwise().maxCoeff() - X.rowwise().minCoeff();
       Index thinnest;
       extent.minCoeff(&thinnest);
@@ -232,7 +234,7 @@ class Tearing {
       const Vec3 xi = locate_in_element<E>(Xb, q, 1e-6).value_or(reference_centre<E>());
       const Scalar s = principal(recovered_stress(*b, xi)).first;
       report.largest_stress = std::max(report.largest_stress, s);
-      if (s < settings_.strength) {
+      if (!(s >= settings_.strength)) {  // NaN: undefined there, no growth
         next.push_back(t);
         continue;
       }
